@@ -1,0 +1,18 @@
+"""sb3-saeir: cooperative multi-agent RL with sparse rewards for Stable-Baselines3 (SAEIR, IJCAI-24)."""
+
+import os
+
+from sb3_saeir.common.vec_env import MultiAgentVecEnv, make_multiagent_vec_env
+from sb3_saeir.envs import list_tasks, make_task, register_task
+
+with open(os.path.join(os.path.dirname(__file__), "version.txt")) as file_handler:
+    __version__ = file_handler.read().strip()
+
+__all__ = [
+    "MultiAgentVecEnv",
+    "__version__",
+    "list_tasks",
+    "make_multiagent_vec_env",
+    "make_task",
+    "register_task",
+]

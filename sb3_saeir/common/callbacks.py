@@ -1,0 +1,45 @@
+"""Callbacks shared by every algorithm of the package."""
+
+from __future__ import annotations
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+
+# Keys of SB3's own episode dicts, logged by SB3 itself (``rollout/ep_rew_mean``, ``rollout/ep_len_mean``).
+_SB3_EPISODE_KEYS = ("r", "l", "t")
+
+
+def episode_metric_means(ep_info_buffer: list[dict] | None) -> dict[str, float]:
+    """Mean of every task metric (every numeric key except SB3's ``r``, ``l``, ``t``) over an episode buffer.
+
+    :param ep_info_buffer: the algorithm's ``ep_info_buffer`` (one dict per finished game)
+    :return: ``{metric name: mean}``
+    """
+    if not ep_info_buffer:
+        return {}
+    names = sorted({key for info in ep_info_buffer for key in info if key not in _SB3_EPISODE_KEYS})
+    means = {}
+    for name in names:
+        values = [float(info[name]) for info in ep_info_buffer if name in info]
+        means[name] = float(np.mean(values))
+    return means
+
+
+class EpisodeMetricsCallback(BaseCallback):
+    """Log the task's per-episode metrics (``coverage_rate``, ``success``, ...) under ``rollout/``.
+
+    :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` records one episode per game, with the task metrics, in the
+    ``episode`` info that SB3 collects into ``model.ep_info_buffer``; SB3 itself only logs ``r`` and ``l`` from it.
+    ``SAEIR_PPO`` logs the metrics by itself; add this callback to log them with plain SB3 algorithms::
+
+        PPO("MlpPolicy", env).learn(100_000, callback=EpisodeMetricsCallback())
+
+    The means cover the same window as ``rollout/ep_rew_mean`` (the last ``stats_window_size`` games).
+    """
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        for name, value in episode_metric_means(list(self.model.ep_info_buffer or [])).items():
+            self.logger.record(f"rollout/{name}", value)

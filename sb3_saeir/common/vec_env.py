@@ -1,0 +1,391 @@
+"""PettingZoo parallel games -> one SB3 ``VecEnv`` with one slot per agent.
+
+SuperSuit turns a PettingZoo :class:`~pettingzoo.utils.env.ParallelEnv` into a vector env with one slot per agent
+(``pettingzoo_env_to_vec_env_v1``) and concatenates ``n_games`` copies (``concat_vec_envs_v1``). Its own SB3 wrapper
+is broken with SB3 2.9 (no ``seed``, ``get_attr``, ``env_method``, ``metadata``; wrong ``reset_infos`` with
+subprocesses; overlapping per-game seeds with ``num_cpus > 1``), so :class:`MultiAgentVecEnv` is a proper SB3
+:class:`~stable_baselines3.common.vec_env.VecEnv` over SuperSuit's gymnasium-style vector env.
+
+Slot layout: ``slot = game * n_agents + agent`` with agents in ``possible_agents`` order. All agents of a game
+reset together. Episode statistics are recorded once per game (not once per agent, as ``VecMonitor`` would).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from pettingzoo.utils.env import AECEnv, ParallelEnv
+from pettingzoo.utils.wrappers import BaseParallelWrapper
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+
+ParallelEnvFactory = Callable[..., ParallelEnv]
+
+# Key under which a task env reports its per-episode metrics in ``infos[agent]`` at the last step of an episode.
+EPISODE_METRICS_KEY = "episode_metrics"
+
+
+class AgentDeathError(RuntimeError):
+    """Raised when agents of a game leave it before the game ends (not supported without ``black_death``)."""
+
+
+class _NoAgentDeath(BaseParallelWrapper):
+    """Parallel-env wrapper that turns "an agent left the game early" into a clear error.
+
+    SuperSuit's ``MarkovVectorEnv`` needs every agent in every step; an env whose agents can die must be wrapped with
+    ``supersuit.black_death_v3`` first.
+
+    :param env: the wrapped parallel env
+    """
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "env":  # not yet set (e.g. while unpickling): avoid infinite recursion
+            raise AttributeError(name)
+        return super().__getattr__(name)
+
+    def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
+        observations, rewards, terminations, truncations, infos = self.env.step(actions)
+        remaining = set(self.env.agents)
+        if remaining and remaining != set(self.env.possible_agents):
+            missing = sorted(set(self.env.possible_agents) - remaining)
+            raise AgentDeathError(
+                f"Agents {missing} left the game before it ended. make_multiagent_vec_env needs every agent in every "
+                "step: wrap the parallel env with supersuit.black_death_v3(env) so that finished agents receive zero "
+                "observations and rewards until the game ends."
+            )
+        return observations, rewards, terminations, truncations, infos
+
+
+def check_parallel_env(par_env: Any) -> None:
+    """Check that ``par_env`` can be vectorized with one slot per agent and parameter sharing.
+
+    :param par_env: an instance returned by the task factory
+    :raises TypeError: for an AEC env or anything that is not a PettingZoo ``ParallelEnv``
+    :raises ValueError: when agents have different observation or action spaces
+    """
+    if isinstance(par_env, AECEnv):
+        raise TypeError(
+            f"Got a PettingZoo AEC env ({type(par_env).__name__}); make_multiagent_vec_env needs a ParallelEnv. "
+            "Convert it with `from pettingzoo.utils.conversions import aec_to_parallel; env = aec_to_parallel(env)` "
+            "or use the module's `parallel_env()` constructor."
+        )
+    if not isinstance(par_env, ParallelEnv) and not (hasattr(par_env, "possible_agents") and hasattr(par_env, "step")):
+        raise TypeError(
+            f"Expected a PettingZoo ParallelEnv, got {type(par_env).__name__}. For a single-agent gymnasium env use "
+            "stable_baselines3.common.env_util.make_vec_env instead."
+        )
+    agents = list(par_env.possible_agents)
+    if len(agents) == 0:
+        raise ValueError("The parallel env has no agents (`possible_agents` is empty).")
+    obs_space = par_env.observation_space(agents[0])
+    act_space = par_env.action_space(agents[0])
+    odd_obs = [a for a in agents if par_env.observation_space(a) != obs_space]
+    if odd_obs:
+        raise ValueError(
+            f"Agents {odd_obs} have an observation space different from {agents[0]}'s ({obs_space}). Parameter sharing "
+            "needs identical spaces: wrap the env with supersuit.pad_observations_v0 (and, if needed, "
+            "supersuit.agent_indicator_v0)."
+        )
+    odd_act = [a for a in agents if par_env.action_space(a) != act_space]
+    if odd_act:
+        raise ValueError(
+            f"Agents {odd_act} have an action space different from {agents[0]}'s ({act_space}). Parameter sharing "
+            "needs identical spaces: wrap the env with supersuit.pad_action_space_v0."
+        )
+
+
+class MultiAgentVecEnv(VecEnv):
+    """SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game, one slot per agent.
+
+    Use :func:`make_multiagent_vec_env` to build one.
+
+    :param env_fn: callable returning one PettingZoo ``ParallelEnv`` (one game)
+    :param n_games: number of game copies G; the vec env has ``G * n_agents`` slots
+    :param num_cpus: SuperSuit worker processes (0 or 1: all games in this process)
+    :param mark_truncation: set ``infos[i]["TimeLimit.truncated"]`` when a game is truncated (not terminated), so
+        that SB3 bootstraps the value of the final observation. Off by default: time limits are treated as terminal,
+        as MAPPO does on MPE, since the observation carries no time feature.
+    """
+
+    def __init__(self, env_fn: ParallelEnvFactory, n_games: int, num_cpus: int = 0, mark_truncation: bool = False) -> None:
+        import supersuit as ss
+
+        if not isinstance(n_games, (int, np.integer)) or isinstance(n_games, bool) or n_games < 1:
+            raise ValueError(f"n_games must be a positive integer (number of game copies), got {n_games!r}.")
+        if num_cpus < 0:
+            raise ValueError(f"num_cpus must be >= 0, got {num_cpus}.")
+        probe_env = env_fn()
+        check_parallel_env(probe_env)
+        self.possible_agents: list[str] = list(probe_env.possible_agents)
+        self.n_agents = len(self.possible_agents)
+        self.n_games = int(n_games)
+        self.num_cpus = num_cpus
+        self.mark_truncation = mark_truncation
+        self._probe_env = probe_env
+        self._probe_render_mode = getattr(probe_env, "render_mode", None)
+        observation_space = probe_env.observation_space(self.possible_agents[0])
+        action_space = probe_env.action_space(self.possible_agents[0])
+
+        if not hasattr(probe_env.unwrapped, "render_mode"):  # optional in PettingZoo, required by SuperSuit
+            probe_env.unwrapped.render_mode = None
+        markov_env = ss.pettingzoo_env_to_vec_env_v1(_NoAgentDeath(probe_env))
+        self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=num_cpus, base_class="gymnasium")
+        self._in_process = not hasattr(self.venv, "pipes")
+        super().__init__(self.n_games * self.n_agents, observation_space, action_space)
+        self.metadata = dict(getattr(probe_env, "metadata", {}) or {})
+        self._game_seed: int | None = None
+        self._actions: np.ndarray | None = None
+        # Per-game episode accumulators (team return = per-step reward averaged over the game's agents).
+        self._episode_returns = np.zeros(self.n_games, dtype=np.float64)
+        self._episode_lengths = np.zeros(self.n_games, dtype=np.int64)
+        self._t_start = time.time()
+        self.episode_count = 0
+
+    # ------------------------------------------------------------------ layout helpers
+    def game_of(self, slot: int) -> int:
+        """Game index of a vec env slot (``slot // n_agents``)."""
+        return slot // self.n_agents
+
+    def _game_envs(self) -> list[Any]:
+        if not self._in_process:
+            raise RuntimeError(
+                "Per-game access (get_attr/set_attr/env_method/get_state on arbitrary attributes) is only available "
+                "when the games run in this process: create the env with num_cpus=0."
+            )
+        return [vec.par_env.env for vec in self.venv.vec_envs]  # MarkovVectorEnv -> _NoAgentDeath -> game
+
+    def _games_of_indices(self, indices: VecEnvIndices) -> list[int]:
+        return [self.game_of(i) for i in self._get_indices(indices)]
+
+    # ------------------------------------------------------------------ seeding / reset
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        """Seed all games at the next reset: game ``g`` gets ``seed + g`` (agents of a game share its seed).
+
+        :param seed: base seed; ``None`` draws one
+        :return: the seed of every slot
+        """
+        if seed is None:
+            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
+        self._game_seed = int(seed)
+        self._seeds = [self._game_seed + self.game_of(i) for i in range(self.num_envs)]
+        return self._seeds
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> VecEnvObs:
+        """Reset every game.
+
+        :param seed: optional base seed (game ``g`` gets ``seed + g``); same as calling :meth:`seed` first
+        :param options: optional reset options for every game (else those set by ``set_options``)
+        :return: the first observations, shape ``(n_games * n_agents, *obs_shape)``
+        """
+        if seed is not None:
+            self.seed(seed)
+        if options is None:
+            options = self._options[0] if self._options and self._options[0] else None
+        game_seed = self._game_seed
+        if self._in_process:
+            obs, infos = self.venv.reset(seed=game_seed, options=options)
+        else:
+            obs, infos = self._reset_subprocesses(game_seed, options)
+        self.reset_infos = [dict(info) for info in infos]
+        self._game_seed = None
+        self._reset_seeds()
+        self._reset_options()
+        self._episode_returns[:] = 0.0
+        self._episode_lengths[:] = 0
+        return obs
+
+    def _reset_subprocesses(self, game_seed: int | None, options: dict | None) -> tuple[np.ndarray, list[dict]]:
+        """Reset SuperSuit's worker processes with non-overlapping per-game seeds.
+
+        SuperSuit sends ``seed + worker_index`` and each worker adds its local game index, so games of different
+        workers share seeds. Here each worker gets ``seed + (index of its first game)``.
+        """
+        from supersuit.vector.multiproc_vec import decompress_info, numpy_deepcopy
+
+        venv = self.venv
+        for worker, pipe in enumerate(venv.pipes):
+            first_game = venv.idx_starts[worker] // self.n_agents
+            worker_seed = None if game_seed is None else game_seed + first_game
+            pipe.send(("reset", (worker_seed, options)))
+        compressed = venv._receive_info()
+        infos = decompress_info(self.num_envs, venv.idx_starts, compressed)
+        return numpy_deepcopy(venv.observations_buffers), infos
+
+    # ------------------------------------------------------------------ stepping
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+        self.venv.step_async(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, terminations, truncations, infos = self.venv.step_wait()
+        terminations = np.asarray(terminations, dtype=bool)
+        truncations = np.asarray(truncations, dtype=bool)
+        dones = terminations | truncations
+        rewards = np.asarray(rewards, dtype=np.float32)
+        infos = [dict(info) for info in infos]
+        if self.mark_truncation:
+            for slot in np.flatnonzero(truncations & ~terminations):
+                infos[slot]["TimeLimit.truncated"] = True
+        self._record_episodes(rewards, dones, infos)
+        return obs, rewards, dones, infos
+
+    def _record_episodes(self, rewards: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
+        """Accumulate per-game statistics; at a game's end put one ``episode`` dict into its first agent's info."""
+        # (G * N,) -> (G, N)
+        rewards_per_game = rewards.reshape(self.n_games, self.n_agents)
+        self._episode_returns += rewards_per_game.mean(axis=1)
+        self._episode_lengths += 1
+        game_done = dones.reshape(self.n_games, self.n_agents).all(axis=1)
+        for game in np.flatnonzero(game_done):
+            first_slot = game * self.n_agents
+            episode: dict[str, Any] = {
+                "r": float(self._episode_returns[game]),
+                "l": int(self._episode_lengths[game]),
+                "t": round(time.time() - self._t_start, 6),
+            }
+            metrics = infos[first_slot].get(EPISODE_METRICS_KEY)
+            if metrics:
+                episode.update({key: float(value) for key, value in metrics.items()})
+                if "success" in metrics:
+                    infos[first_slot]["is_success"] = bool(metrics["success"])
+            infos[first_slot]["episode"] = episode
+            self._episode_returns[game] = 0.0
+            self._episode_lengths[game] = 0
+            self.episode_count += 1
+
+    # ------------------------------------------------------------------ SB3 VecEnv API
+    def close(self) -> None:
+        self.venv.close()
+        if hasattr(self._probe_env, "close"):
+            self._probe_env.close()
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """Frame of game 0 (SuperSuit renders the first game only); ``None`` for the other slots."""
+        frame = self.venv.render()
+        return [frame] + [None] * (self.num_envs - 1)
+
+    def render(self, mode: str | None = None) -> np.ndarray | None:
+        """Render game 0.
+
+        :param mode: must be ``None`` or the ``render_mode`` given to the task (``"rgb_array"`` returns the frame)
+        :return: an RGB array of game 0 in ``rgb_array`` mode, else ``None``
+        """
+        if mode is not None and mode != self.render_mode:
+            warnings.warn(
+                f"render(mode={mode!r}) ignored: the render mode is fixed when the task is created "
+                f"(here {self.render_mode!r}); pass render_mode={mode!r} to make_multiagent_vec_env.",
+                stacklevel=2,
+            )
+            return None
+        if self.render_mode is None:
+            warnings.warn("render() called but the task was created without render_mode.", stacklevel=2)
+            return None
+        frame = self.venv.render()
+        return frame if self.render_mode == "rgb_array" else None
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """Attribute of the game each slot belongs to (``render_mode``, ``metadata``, ``possible_agents`` and
+        ``n_agents`` also work with subprocesses)."""
+        n_slots = len(self._get_indices(indices))
+        if attr_name == "render_mode":
+            return [self._probe_render_mode] * n_slots
+        if attr_name in ("metadata", "possible_agents"):
+            return [getattr(self._probe_env, attr_name)] * n_slots
+        if attr_name in ("n_agents", "n_games"):
+            return [getattr(self, attr_name)] * n_slots
+        games = self._game_envs()
+        return [getattr(games[g].unwrapped, attr_name) for g in self._games_of_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set an attribute on the game of each slot (in-process games only)."""
+        games = self._game_envs()
+        for g in sorted(set(self._games_of_indices(indices))):
+            setattr(games[g].unwrapped, attr_name, value)
+
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
+        """Call a method of the game each slot belongs to (once per slot; in-process games only)."""
+        games = self._game_envs()
+        results = []
+        for g in self._games_of_indices(indices):
+            game = games[g]
+            target = game if hasattr(game, method_name) else game.unwrapped
+            results.append(getattr(target, method_name)(*method_args, **method_kwargs))
+        return results
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        """Games are PettingZoo envs, never gymnasium-wrapped: all ``False``."""
+        return [False] * len(self._get_indices(indices))
+
+    def get_state(self) -> np.ndarray:
+        """Global state of every game, ``(n_games, *state_shape)`` (in-process games only)."""
+        return np.stack([game.state() for game in self._game_envs()])
+
+    def __repr__(self) -> str:
+        return (
+            f"MultiAgentVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
+            f"num_cpus={self.num_cpus})"
+        )
+
+
+def make_multiagent_vec_env(
+    task: str | ParallelEnvFactory,
+    n_games: int,
+    seed: int | None = None,
+    num_cpus: int = 0,
+    mark_truncation: bool = False,
+    **task_kwargs: Any,
+) -> MultiAgentVecEnv:
+    """Create an SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game, one slot per agent.
+
+    Mirrors :func:`stable_baselines3.common.env_util.make_vec_env`: all agents share one policy (parameter sharing);
+    slot ``game * n_agents + agent`` holds agent ``agent`` of game ``game``.
+
+    Example::
+
+        env = make_multiagent_vec_env("cn-sparse-n3", n_games=16, seed=0)
+        model = PPO("MlpPolicy", env, seed=0).learn(100_000)
+
+    :param task: a registered task id (see :func:`sb3_saeir.envs.list_tasks`, e.g. ``"cn-sparse-n3"``) or a callable
+        returning a PettingZoo ``ParallelEnv`` (called with ``task_kwargs``)
+    :param n_games: number of game copies
+    :param seed: base seed; game ``g`` is reset with ``seed + g``. ``None``: unseeded (games still differ)
+    :param num_cpus: SuperSuit worker processes; 0 keeps every game in this process (fastest on small machines)
+    :param mark_truncation: set ``TimeLimit.truncated`` in infos when a game hits its time limit
+    :param task_kwargs: keyword arguments for the task constructor (e.g. ``N=4``, ``render_mode="rgb_array"``)
+    :return: the vector env; ``env.n_agents``, ``env.n_games`` and ``env.possible_agents`` describe the layout
+    """
+    from sb3_saeir.envs.registry import get_task_factory
+
+    if isinstance(task, str):
+        factory = get_task_factory(task)
+    elif callable(task):
+        factory = task
+    else:
+        raise TypeError(f"task must be a registered task id or a callable returning a ParallelEnv, got {task!r}.")
+
+    def env_fn() -> ParallelEnv:
+        return factory(**task_kwargs)
+
+    vec_env = MultiAgentVecEnv(env_fn, n_games=n_games, num_cpus=num_cpus, mark_truncation=mark_truncation)
+    if seed is not None:
+        vec_env.seed(seed)
+    return vec_env
+
+
+def is_multiagent_vec_env(env: Any) -> bool:
+    """True if ``env`` (possibly wrapped in SB3 ``VecEnvWrapper``s) exposes ``n_agents`` and ``n_games``."""
+    return getattr(env, "n_agents", None) is not None and getattr(env, "n_games", None) is not None
+
+
+def joint_observation_space(observation_space: spaces.Box, n_agents: int) -> spaces.Box:
+    """Observation space of the concatenation of all agents' observations of one game."""
+    low = np.tile(observation_space.low.reshape(-1), n_agents)
+    high = np.tile(observation_space.high.reshape(-1), n_agents)
+    return spaces.Box(low=low, high=high, dtype=observation_space.dtype)  # type: ignore[arg-type]

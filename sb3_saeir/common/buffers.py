@@ -1,0 +1,265 @@
+"""Grouped recurrent rollout buffer: per-scale values and GAE, GRU states per step, minibatches of whole games."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Generator
+from typing import NamedTuple
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import RolloutBuffer
+
+
+class GroupedRecurrentSamples(NamedTuple):
+    """A minibatch of B blocks; a block = one game, one chunk of L consecutive steps, all N agents.
+
+    Shapes: ``observations (L, B, N, d)``, ``actions (L, B, N, action_dim)``, ``old_log_prob (L, B, N)``,
+    ``old_values (L, B, N, K)`` (normalised), ``advantages (L, B, N, K)`` (standardised per scale),
+    ``returns (L, B, N, K)``, ``episode_starts (L, B, N)``, ``actor_states (B, N, H)``, ``critic_states (K, B, N, H)``
+    (stored states at each chunk's first step), ``mask (L, B)`` (False on padding after the rollout's end),
+    ``game_indices (B,)`` and ``time_indices (L, B)`` (where each block's data came from in the buffer).
+    """
+
+    observations: th.Tensor
+    actions: th.Tensor
+    old_log_prob: th.Tensor
+    old_values: th.Tensor
+    advantages: th.Tensor
+    returns: th.Tensor
+    episode_starts: th.Tensor
+    actor_states: th.Tensor
+    critic_states: th.Tensor
+    mask: th.Tensor
+    game_indices: th.Tensor
+    time_indices: th.Tensor
+
+
+class GroupedRecurrentRolloutBuffer(RolloutBuffer):
+    """Rollout buffer that keeps the agents of a game together, for critics over a game's agents.
+
+    Arrays are SB3's ``(n_steps, n_envs, ...)`` with ``n_envs = n_games * n_agents`` in slot order
+    ``game * n_agents + agent``, so ``(n_steps, n_games, n_agents, ...)`` is a free reshape. On top of
+    :class:`~stable_baselines3.common.buffers.RolloutBuffer` it stores one value per critic scale (normalised space),
+    the (already scaled) intrinsic reward of every scale, GRU states per step, and per-scale returns and advantages.
+
+    Per-scale GAE (spec §2.4), with :math:`D_K` the scale's ValueNorm denormalisation and
+    :math:`m_{t+1} = 1 - \\text{episode\\_start}_{t+1}`:
+
+    .. math::
+
+        \\delta^K_t = r_t + r^{int,K}_t + \\gamma D_K(v^K_{t+1}) m_{t+1} - D_K(v^K_t), \\quad
+        A^K_t = \\delta^K_t + \\gamma \\lambda m_{t+1} A^K_{t+1}, \\quad R^K_t = A^K_t + D_K(v^K_t)
+
+    Minibatches (:meth:`get`) are blocks of (game, chunk of ``data_chunk_length`` steps) carrying all agents, so a
+    critic run on a minibatch builds every hypergraph from one game's agents at one step, as during the rollout.
+    When ``n_steps`` is not a multiple of the chunk length, each game's last chunk is shorter and padded (masked).
+
+    :param buffer_size: ``n_steps``
+    :param observation_space: one agent's observation space
+    :param action_space: one agent's action space
+    :param device: torch device
+    :param gamma: discount
+    :param gae_lambda: GAE lambda
+    :param n_envs: vec env slots (``n_games * n_agents``)
+    :param n_agents: agents per game
+    :param n_scales: number of critics K
+    :param actor_hidden_size: actor GRU width (0: MLP actor)
+    :param critic_hidden_size: critic GRU width
+    :param data_chunk_length: L, steps per training chunk
+    """
+
+    values: np.ndarray
+    returns: np.ndarray
+    advantages: np.ndarray
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        device: th.device | str = "auto",
+        gamma: float = 0.99,
+        gae_lambda: float = 0.95,
+        n_envs: int = 1,
+        n_agents: int = 1,
+        n_scales: int = 1,
+        actor_hidden_size: int = 64,
+        critic_hidden_size: int = 64,
+        data_chunk_length: int = 10,
+    ) -> None:
+        if n_envs % n_agents != 0:
+            raise ValueError(f"n_envs={n_envs} is not a multiple of n_agents={n_agents}.")
+        self.n_agents = n_agents
+        self.n_games = n_envs // n_agents
+        self.n_scales = n_scales
+        self.actor_hidden_size = actor_hidden_size
+        self.critic_hidden_size = critic_hidden_size
+        self.data_chunk_length = data_chunk_length
+        self.value_denormalizer: Callable[[np.ndarray], np.ndarray] = lambda values: values
+        self.last_values: np.ndarray | None = None
+        self.last_dones: np.ndarray | None = None
+        super().__init__(buffer_size, observation_space, action_space, device, gae_lambda, gamma, n_envs)  # type: ignore[arg-type]
+        self.gamma, self.gae_lambda = gamma, gae_lambda
+
+    def reset(self) -> None:
+        super().reset()
+        shape_k = (self.buffer_size, self.n_envs, self.n_scales)
+        self.values = np.zeros(shape_k, dtype=np.float32)
+        self.returns = np.zeros(shape_k, dtype=np.float32)
+        self.advantages = np.zeros(shape_k, dtype=np.float32)
+        self.intrinsic_rewards = np.zeros(shape_k, dtype=np.float32)
+        self.bootstrap_rewards = np.zeros(shape_k, dtype=np.float32)
+        self.actor_states = np.zeros((self.buffer_size, self.n_envs, self.actor_hidden_size), dtype=np.float32)
+        self.critic_states = np.zeros(
+            (self.buffer_size, self.n_scales, self.n_games, self.n_agents, self.critic_hidden_size), dtype=np.float32
+        )
+        self.last_values = None
+        self.last_dones = None
+
+    def add(  # type: ignore[override]
+        self,
+        obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        episode_start: np.ndarray,
+        value: th.Tensor,
+        log_prob: th.Tensor,
+        *,
+        actor_states: th.Tensor,
+        critic_states: th.Tensor,
+    ) -> None:
+        """Store one step.
+
+        :param value: normalised values ``(n_envs, K)``
+        :param actor_states: actor GRU states that were the *input* of this step ``(n_envs, H)``
+        :param critic_states: critic GRU states that were the input of this step ``(K, G, N, H)``
+        """
+        self.observations[self.pos] = np.asarray(obs).reshape((self.n_envs, *self.obs_shape))
+        self.actions[self.pos] = np.asarray(action).reshape((self.n_envs, self.action_dim))
+        self.rewards[self.pos] = np.asarray(reward)
+        self.episode_starts[self.pos] = np.asarray(episode_start)
+        self.values[self.pos] = value.detach().cpu().numpy().reshape(self.n_envs, self.n_scales)
+        self.log_probs[self.pos] = log_prob.detach().cpu().numpy().reshape(self.n_envs)
+        if self.actor_hidden_size:
+            self.actor_states[self.pos] = actor_states.detach().cpu().numpy()
+        self.critic_states[self.pos] = critic_states.detach().cpu().numpy()
+        self.pos += 1
+        if self.pos == self.buffer_size:
+            self.full = True
+
+    def add_intrinsic_rewards(self, bonus: np.ndarray) -> None:
+        """Add a scaled intrinsic reward; ``(n_steps, n_envs)`` applies to every scale, ``(n_steps, n_envs, K)``
+        to each scale separately. Call :meth:`recompute_returns_and_advantage` afterwards."""
+        bonus = np.asarray(bonus, dtype=np.float32)
+        if bonus.shape == (self.buffer_size, self.n_envs):
+            bonus = bonus[..., None]
+        if bonus.shape not in ((self.buffer_size, self.n_envs, 1), (self.buffer_size, self.n_envs, self.n_scales)):
+            raise ValueError(
+                f"intrinsic reward shape {bonus.shape} does not match the buffer: expected "
+                f"{(self.buffer_size, self.n_envs)} or {(self.buffer_size, self.n_envs, self.n_scales)}."
+            )
+        self.intrinsic_rewards += bonus
+
+    def compute_returns_and_advantage(self, last_values: th.Tensor, dones: np.ndarray) -> None:  # type: ignore[override]
+        """Per-scale GAE on denormalised values, including the intrinsic rewards stored so far.
+
+        :param last_values: normalised values ``(n_envs, K)`` of the observation after the last step
+        :param dones: ``(n_envs,)`` whether the last step ended an episode
+        """
+        self.last_values = last_values.detach().cpu().numpy().reshape(self.n_envs, self.n_scales)
+        self.last_dones = np.asarray(dones, dtype=np.float32).reshape(self.n_envs)
+        self.recompute_returns_and_advantage()
+
+    def recompute_returns_and_advantage(self) -> None:
+        """Run GAE again with the last values and dones of :meth:`compute_returns_and_advantage` (after a reward
+        change, e.g. an intrinsic-reward callback)."""
+        if self.last_values is None or self.last_dones is None:
+            raise RuntimeError("compute_returns_and_advantage must be called once before recomputing.")
+        values = self.value_denormalizer(self.values)  # (T, E, K)
+        last_values = self.value_denormalizer(self.last_values)  # (E, K)
+        rewards = self.rewards[..., None] + self.intrinsic_rewards + self.bootstrap_rewards  # (T, E, K)
+        last_gae_lam = np.zeros((self.n_envs, self.n_scales), dtype=np.float32)
+        for step in reversed(range(self.buffer_size)):
+            if step == self.buffer_size - 1:
+                next_non_terminal = 1.0 - self.last_dones
+                next_values = last_values
+            else:
+                next_non_terminal = 1.0 - self.episode_starts[step + 1]
+                next_values = values[step + 1]
+            delta = rewards[step] + self.gamma * next_values * next_non_terminal[:, None] - values[step]
+            last_gae_lam = delta + self.gamma * self.gae_lambda * next_non_terminal[:, None] * last_gae_lam
+            self.advantages[step] = last_gae_lam
+        self.returns = (self.advantages + values).astype(np.float32)
+
+    # ------------------------------------------------------------------------------------------------ sampling
+    def n_chunks(self) -> int:
+        """Chunks per game: ``ceil(n_steps / data_chunk_length)``."""
+        return -(-self.buffer_size // self.data_chunk_length)
+
+    def n_blocks(self) -> int:
+        """Blocks (game, chunk) in the buffer."""
+        return self.n_games * self.n_chunks()
+
+    def standardized_advantages(self) -> np.ndarray:
+        """Advantages standardised per scale over the whole buffer (spec §1.10 step 2), ``(T, E, K)``."""
+        mean = self.advantages.mean(axis=(0, 1), keepdims=True)
+        std = self.advantages.std(axis=(0, 1), keepdims=True)
+        return (self.advantages - mean) / (std + 1e-5)
+
+    def get(  # type: ignore[override]
+        self, n_minibatches: int = 1, normalize_advantage: bool = True
+    ) -> Generator[GroupedRecurrentSamples, None, None]:
+        """Yield ``n_minibatches`` minibatches covering every block once, in random order.
+
+        :param n_minibatches: how many minibatches to split the blocks into (at most ``n_blocks()``)
+        :param normalize_advantage: standardise advantages per scale first
+        """
+        assert self.full, "the rollout buffer is not full"
+        n_blocks = self.n_blocks()
+        if not 1 <= n_minibatches <= n_blocks:
+            raise ValueError(f"n_minibatches must be in [1, {n_blocks}] (blocks in the buffer), got {n_minibatches}.")
+        advantages = self.standardized_advantages() if normalize_advantage else self.advantages
+        permutation = np.random.permutation(n_blocks)
+        for block_ids in np.array_split(permutation, n_minibatches):
+            yield self._get_blocks(block_ids, advantages)
+
+    def _get_blocks(self, block_ids: np.ndarray, advantages: np.ndarray) -> GroupedRecurrentSamples:  # type: ignore[override]
+        length, n_agents, n_games = self.data_chunk_length, self.n_agents, self.n_games
+        games = block_ids % n_games  # (B,)
+        chunk_starts = (block_ids // n_games) * length  # (B,)
+        # (L, 1) + (1, B) -> (L, B) time index of every row; padding beyond the rollout repeats the last step
+        raw_time = np.arange(length)[:, None] + chunk_starts[None, :]
+        mask = raw_time < self.buffer_size
+        time_idx = np.minimum(raw_time, self.buffer_size - 1)
+
+        def per_game(array: np.ndarray) -> np.ndarray:
+            # (T, G * N, ...) -> (T, G, N, ...) -> gather -> (L, B, N, ...)
+            grouped = array.reshape(self.buffer_size, n_games, n_agents, *array.shape[2:])
+            return grouped[time_idx, games[None, :]]
+
+        actor_states = self.actor_states.reshape(self.buffer_size, n_games, n_agents, -1)[chunk_starts, games]  # (B, N, H)
+        # (T, K, G, N, H) -> (B, K, N, H) -> (K, B, N, H)
+        critic_states = self.critic_states[chunk_starts, :, games].transpose(1, 0, 2, 3)
+        data = (
+            per_game(self.observations).reshape(length, len(block_ids), n_agents, -1),
+            per_game(self.actions),
+            per_game(self.log_probs),
+            per_game(self.values),
+            per_game(advantages),
+            per_game(self.returns),
+            per_game(self.episode_starts),
+            actor_states,
+            np.ascontiguousarray(critic_states),
+            mask,
+            games,
+            time_idx,
+        )
+        return GroupedRecurrentSamples(*(self.to_torch(np.ascontiguousarray(array)) for array in data))
+
+    def to_torch(self, array: np.ndarray, copy: bool = True) -> th.Tensor:
+        if array.dtype == bool:
+            return th.as_tensor(array, device=self.device)
+        if np.issubdtype(array.dtype, np.integer):
+            return th.as_tensor(array, device=self.device)
+        return super().to_torch(array, copy)

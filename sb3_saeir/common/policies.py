@@ -1,0 +1,413 @@
+"""Multi-agent recurrent actor-critic policies: a parameter-shared actor per agent, critics over each game's agents.
+
+The actor sees one agent's observation (decentralised execution, so ``predict`` works on any number of agents'
+observations). Every critic scale sees the N agents of a game together: its inputs are shaped ``(T, G, N, obs_dim)``
+(time, games, agents), which is why ``SAEIR_PPO`` keeps games whole in its buffer and minibatches.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.distributions import Distribution
+from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
+from torch import nn
+
+from sb3_saeir.common.torch_layers import ActorNetwork, ScaleCritic, ValueNorm
+
+SCALES = ("team", "group", "individual")
+
+
+class MultiAgentStates(NamedTuple):
+    """Recurrent states of a multi-agent policy.
+
+    :param actor: actor GRU states, ``(n_slots, H)`` with ``n_slots = G * N`` (zeros-size if the actor is an MLP)
+    :param critic: critic GRU states, ``(K, G, N, H)`` for the K critic scales
+    """
+
+    actor: th.Tensor
+    critic: th.Tensor
+
+
+class MultiAgentActorCriticPolicy(ActorCriticPolicy):
+    """Base class: recurrent parameter-shared actor, one or more critics over a game's agents, ValueNorm per critic.
+
+    Subclasses implement :meth:`_build_critics`. The actor follows the authors' rMAPPO actor (spec §3): LayerNorm on
+    the input, two ``Linear -> activation -> LayerNorm`` layers, a GRU with LayerNorm output, then SB3's action head
+    (orthogonal init, gain 0.01). All networks are trained by one Adam optimizer; since they share no parameters this
+    equals one Adam per network, and gradients are clipped per network by the algorithm.
+
+    :param observation_space: one agent's observation space
+    :param action_space: one agent's action space
+    :param lr_schedule: learning rate schedule
+    :param n_agents: agents per game (N); set by the algorithm from the vec env
+    :param hidden_size: width of every hidden layer and GRU (64 in the paper's code)
+    :param activation_fn: activation of the MLP layers (Tanh for navigation, ReLU for football in the paper)
+    :param recurrent_actor: GRU in the actor (authors' code); ``False`` gives the paper's plain MLP actor
+    :param normalize_values: one ValueNorm per critic (spec §1.9); values are predicted in normalised space
+    :param value_norm_beta: ValueNorm's EMA coefficient
+    :param critic_gumbel_noise: draw Gumbel noise in the hypergraph critics at every forward pass (authors' code);
+        ``False`` uses the plain softmax (deterministic critics)
+    :param ortho_init: orthogonal initialisation (always on for the networks of this module; kept for SB3 compatibility)
+    :param optimizer_class: optimizer class
+    :param optimizer_kwargs: optimizer kwargs (default ``eps=1e-5``, as MAPPO)
+    :param kwargs: passed to :class:`~stable_baselines3.common.policies.ActorCriticPolicy`
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Schedule,
+        n_agents: int = 1,
+        hidden_size: int = 64,
+        activation_fn: type[nn.Module] = nn.Tanh,
+        recurrent_actor: bool = True,
+        normalize_values: bool = True,
+        value_norm_beta: float = 0.99999,
+        critic_gumbel_noise: bool = True,
+        ortho_init: bool = True,
+        optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+        optimizer_kwargs: dict[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
+            raise ValueError(
+                f"{type(self).__name__} needs flat Box observations per agent, got {observation_space}. "
+                "Flatten them with supersuit.flatten_v0 (or a gymnasium FlattenObservation-style wrapper)."
+            )
+        if n_agents < 1:
+            raise ValueError(f"n_agents must be >= 1, got {n_agents}.")
+        self.n_agents = n_agents
+        self.hidden_size = hidden_size
+        self.recurrent_actor = recurrent_actor
+        self.normalize_values = normalize_values
+        self.value_norm_beta = value_norm_beta
+        self.critic_gumbel_noise = critic_gumbel_noise
+        if optimizer_kwargs is None:
+            optimizer_kwargs = {"eps": 1e-5}
+        kwargs.pop("net_arch", None)
+        super().__init__(
+            observation_space,
+            action_space,
+            lr_schedule,
+            activation_fn=activation_fn,
+            ortho_init=ortho_init,
+            optimizer_class=optimizer_class,
+            optimizer_kwargs=optimizer_kwargs,
+            share_features_extractor=True,
+            **kwargs,
+        )
+
+    # ------------------------------------------------------------------------------------------------ construction
+    @property
+    def obs_dim(self) -> int:
+        return int(np.prod(self.observation_space.shape))  # type: ignore[arg-type]
+
+    @property
+    def scales(self) -> tuple[str, ...]:
+        """Names of the critics, in the order of the last axis of every value array."""
+        return tuple(self.critics.keys())
+
+    @property
+    def n_scales(self) -> int:
+        return len(self.critics)
+
+    def _build_critics(self) -> nn.ModuleDict:
+        """Critic modules by scale name; each maps ``(T, G, N, d), (G, N, H), (T, G, N)`` to values ``(T, G, N)``."""
+        raise NotImplementedError
+
+    def _build(self, lr_schedule: Schedule) -> None:
+        self.actor = ActorNetwork(self.obs_dim, self.hidden_size, self.activation_fn, recurrent=self.recurrent_actor)
+        self.action_net, self.log_std = self._build_action_net(self.hidden_size)
+        self.critics = self._build_critics()
+        self.value_norms = nn.ModuleDict({name: ValueNorm(beta=self.value_norm_beta) for name in self.critics})
+        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)  # type: ignore[call-arg]
+
+    def _build_action_net(self, latent_dim: int) -> tuple[nn.Module, nn.Parameter | None]:
+        from stable_baselines3.common.distributions import (
+            BernoulliDistribution,
+            CategoricalDistribution,
+            DiagGaussianDistribution,
+            MultiCategoricalDistribution,
+        )
+
+        log_std = None
+        if isinstance(self.action_dist, DiagGaussianDistribution):
+            action_net, log_std = self.action_dist.proba_distribution_net(latent_dim, log_std_init=self.log_std_init)
+        elif isinstance(self.action_dist, (CategoricalDistribution, MultiCategoricalDistribution, BernoulliDistribution)):
+            action_net = self.action_dist.proba_distribution_net(latent_dim)
+        else:
+            raise NotImplementedError(f"Unsupported action distribution {type(self.action_dist).__name__}.")
+        nn.init.orthogonal_(action_net.weight, gain=0.01)
+        nn.init.zeros_(action_net.bias)
+        return action_net, log_std
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(
+            n_agents=self.n_agents,
+            hidden_size=self.hidden_size,
+            recurrent_actor=self.recurrent_actor,
+            normalize_values=self.normalize_values,
+            value_norm_beta=self.value_norm_beta,
+            critic_gumbel_noise=self.critic_gumbel_noise,
+        )
+        data.pop("net_arch", None)
+        return data
+
+    # ------------------------------------------------------------------------------------------------ parameters
+    def actor_parameters(self) -> list[nn.Parameter]:
+        """Parameters of the actor (trunk, action head, log std)."""
+        params = [*self.actor.parameters(), *self.action_net.parameters()]
+        if self.log_std is not None:
+            params.append(self.log_std)
+        return params
+
+    def critic_parameters(self, scale: str) -> list[nn.Parameter]:
+        """Parameters of one critic."""
+        return list(self.critics[scale].parameters())
+
+    def initial_states(self, n_games: int) -> MultiAgentStates:
+        """Zero recurrent states for ``n_games`` games."""
+        n_slots = n_games * self.n_agents
+        actor_width = self.hidden_size if self.recurrent_actor else 0
+        return MultiAgentStates(
+            actor=th.zeros(n_slots, actor_width, device=self.device),
+            critic=th.zeros(self.n_scales, n_games, self.n_agents, self.hidden_size, device=self.device),
+        )
+
+    # ------------------------------------------------------------------------------------------------ value space
+    def denormalize_values(self, values: th.Tensor) -> th.Tensor:
+        """Map normalised values ``(..., K)`` to return space with each scale's ValueNorm."""
+        if not self.normalize_values:
+            return values
+        return th.stack([self.value_norms[name].denormalize(values[..., k]) for k, name in enumerate(self.scales)], dim=-1)
+
+    def denormalize_values_numpy(self, values: np.ndarray) -> np.ndarray:
+        """NumPy version of :meth:`denormalize_values` (used by the rollout buffer's GAE)."""
+        with th.no_grad():
+            return self.denormalize_values(th.as_tensor(values, dtype=th.float32, device=self.device)).cpu().numpy()
+
+    # ------------------------------------------------------------------------------------------------ networks
+    def _actor_latent(
+        self, obs: th.Tensor, states: th.Tensor | None, episode_starts: th.Tensor
+    ) -> tuple[th.Tensor, th.Tensor | None]:
+        """obs ``(T, B, d)``, states ``(B, H)``, episode_starts ``(T, B)`` -> latent ``(T, B, H)``, new states."""
+        hidden = states if self.recurrent_actor else None
+        return self.actor(obs, hidden, episode_starts)
+
+    def _critic_values(
+        self, obs: th.Tensor, states: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool | None = None
+    ) -> tuple[th.Tensor, th.Tensor]:
+        """obs ``(T, G, N, d)``, states ``(K, G, N, H)``, episode_starts ``(T, G, N)`` -> values ``(T, G, N, K)``,
+        new states ``(K, G, N, H)``."""
+        noise = self.critic_gumbel_noise if gumbel_noise is None else gumbel_noise
+        values, new_states = [], []
+        for k, critic in enumerate(self.critics.values()):
+            value, state = critic(obs, states[k], episode_starts, gumbel_noise=noise)
+            values.append(value)
+            new_states.append(state)
+        return th.stack(values, dim=-1), th.stack(new_states)
+
+    def _distribution(self, latent_pi: th.Tensor) -> Distribution:
+        mean_actions = self.action_net(latent_pi)
+        if self.log_std is not None:
+            return self.action_dist.proba_distribution(mean_actions, self.log_std)  # type: ignore[call-arg]
+        return self.action_dist.proba_distribution(action_logits=mean_actions)  # type: ignore[call-arg]
+
+    def _to_games(self, flat: th.Tensor) -> th.Tensor:
+        """``(n_slots, ...)`` -> ``(1, G, N, ...)`` (one time step)."""
+        return flat.reshape(1, -1, self.n_agents, *flat.shape[1:])
+
+    def forward(  # type: ignore[override]
+        self, obs: th.Tensor, states: MultiAgentStates, episode_starts: th.Tensor, deterministic: bool = False
+    ) -> tuple[th.Tensor, th.Tensor, th.Tensor, MultiAgentStates]:
+        """One rollout step for all slots of the vec env.
+
+        :param obs: ``(G * N, d)`` observations in slot order
+        :param states: states before this step
+        :param episode_starts: ``(G * N,)``, 1 where a slot starts a new episode
+        :param deterministic: greedy actions
+        :return: actions ``(G * N, ...)``, normalised values ``(G * N, K)``, log-probs ``(G * N,)``, new states
+        """
+        obs = obs.float().reshape(obs.shape[0], -1)
+        starts = episode_starts.float()
+        latent_pi, actor_states = self._actor_latent(obs.unsqueeze(0), states.actor, starts.unsqueeze(0))
+        distribution = self._distribution(latent_pi.squeeze(0))
+        actions = distribution.get_actions(deterministic=deterministic)
+        log_prob = distribution.log_prob(actions)
+        # (G * N, d) -> (1, G, N, d); values (1, G, N, K) -> (G * N, K)
+        values, critic_states = self._critic_values(self._to_games(obs), states.critic, self._to_games(starts))
+        values = values.reshape(-1, self.n_scales)
+        new_actor = actor_states if actor_states is not None else states.actor
+        return actions, values, log_prob, MultiAgentStates(new_actor, critic_states)
+
+    def predict_values(  # type: ignore[override]
+        self, obs: th.Tensor, states: MultiAgentStates | None = None, episode_starts: th.Tensor | None = None
+    ) -> th.Tensor:
+        """Normalised values ``(G * N, K)`` of one step of observations ``(G * N, d)`` in slot order."""
+        obs = obs.float().reshape(obs.shape[0], -1)
+        n_games = obs.shape[0] // self.n_agents
+        if states is None:
+            states = self.initial_states(n_games)
+        if episode_starts is None:
+            episode_starts = th.zeros(obs.shape[0], device=obs.device)
+        values, _ = self._critic_values(self._to_games(obs), states.critic, self._to_games(episode_starts.float()))
+        return values.reshape(-1, self.n_scales)
+
+    def evaluate_actions(  # type: ignore[override]
+        self,
+        obs: th.Tensor,
+        actions: th.Tensor,
+        actor_states: th.Tensor,
+        critic_states: th.Tensor,
+        episode_starts: th.Tensor,
+    ) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        """Re-run actor and critics over chunks of whole games (training).
+
+        :param obs: ``(L, B, N, d)``: L steps of B blocks (game, chunk), all N agents
+        :param actions: ``(L, B, N, action_dim)``
+        :param actor_states: ``(B, N, H)`` stored actor states at each chunk's first step
+        :param critic_states: ``(K, B, N, H)`` stored critic states at each chunk's first step
+        :param episode_starts: ``(L, B, N)``
+        :return: normalised values ``(L, B, N, K)``, log-probs ``(L, B, N)``, entropy ``(L, B, N)``
+        """
+        n_steps, n_blocks, n_agents = obs.shape[:3]
+        flat_obs = obs.reshape(n_steps, n_blocks * n_agents, -1)  # (L, B * N, d)
+        flat_starts = episode_starts.reshape(n_steps, n_blocks * n_agents)  # (L, B * N)
+        flat_actor_states = actor_states.reshape(n_blocks * n_agents, -1)  # (B * N, H)
+        latent_pi, _ = self._actor_latent(flat_obs, flat_actor_states, flat_starts)
+        distribution = self._distribution(latent_pi.reshape(n_steps * n_blocks * n_agents, -1))
+        flat_actions = actions.reshape(n_steps * n_blocks * n_agents, *actions.shape[3:])
+        if isinstance(self.action_space, spaces.Discrete):
+            flat_actions = flat_actions.reshape(-1)
+        log_prob = distribution.log_prob(flat_actions).reshape(n_steps, n_blocks, n_agents)
+        entropy = distribution.entropy()
+        entropy = entropy.reshape(n_steps, n_blocks, n_agents) if entropy is not None else -log_prob
+        values, _ = self._critic_values(obs.reshape(n_steps, n_blocks, n_agents, -1), critic_states, episode_starts)
+        return values, log_prob, entropy
+
+    # ------------------------------------------------------------------------------------------------ inference
+    def get_distribution(  # type: ignore[override]
+        self, obs: PyTorchObs, actor_states: th.Tensor | None = None, episode_starts: th.Tensor | None = None
+    ) -> Distribution:
+        """Action distribution of one step for a batch of agents' observations ``(B, d)``."""
+        obs = obs.float().reshape(obs.shape[0], -1)  # type: ignore[union-attr]
+        if episode_starts is None:
+            episode_starts = th.zeros(obs.shape[0], device=obs.device)
+        latent_pi, _ = self._actor_latent(obs.unsqueeze(0), actor_states, episode_starts.float().unsqueeze(0))
+        return self._distribution(latent_pi.squeeze(0))
+
+    def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
+        return self.get_distribution(observation).get_actions(deterministic=deterministic)
+
+    def predict(  # type: ignore[override]
+        self,
+        observation: np.ndarray,
+        state: np.ndarray | None = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Actions for any number of agents' observations (the actor is decentralised).
+
+        :param observation: ``(B, d)`` observations of B agents, or ``(d,)`` for one agent
+        :param state: actor GRU states ``(B, H)`` from the previous call (``None``: zeros)
+        :param episode_start: ``(B,)``, 1 where an agent starts a new episode (resets its state)
+        :param deterministic: greedy actions
+        :return: actions and the new actor states (``None`` for an MLP actor)
+        """
+        self.set_training_mode(False)
+        obs_array = np.asarray(observation, dtype=np.float32)
+        single = obs_array.ndim == len(self.observation_space.shape)  # type: ignore[arg-type]
+        if single:
+            obs_array = obs_array[None]
+        n_agents = obs_array.shape[0]
+        with th.no_grad():
+            obs_tensor = th.as_tensor(obs_array, device=self.device).reshape(n_agents, -1)
+            hidden = None
+            if self.recurrent_actor:
+                hidden = (
+                    th.zeros(n_agents, self.hidden_size, device=self.device)
+                    if state is None
+                    else th.as_tensor(np.asarray(state, dtype=np.float32), device=self.device).reshape(n_agents, -1)
+                )
+            starts = th.zeros(n_agents, device=self.device)
+            if episode_start is not None:
+                starts = th.as_tensor(np.asarray(episode_start, dtype=np.float32), device=self.device).reshape(n_agents)
+            latent_pi, new_hidden = self._actor_latent(obs_tensor.unsqueeze(0), hidden, starts.unsqueeze(0))
+            actions = self._distribution(latent_pi.squeeze(0)).get_actions(deterministic=deterministic)
+        actions_np = actions.cpu().numpy().reshape((-1, *self.action_space.shape))  # type: ignore[misc]
+        if isinstance(self.action_space, spaces.Box):
+            actions_np = np.clip(actions_np, self.action_space.low, self.action_space.high)
+        new_state = new_hidden.cpu().numpy() if new_hidden is not None else None
+        if single:
+            actions_np = actions_np[0]
+            new_state = new_state[0] if new_state is not None else None
+        return actions_np, new_state
+
+
+class MSHGPolicy(MultiAgentActorCriticPolicy):
+    """SAEIR's multi-scale hypergraph (MSHG) critic with the parameter-shared recurrent actor.
+
+    Three independent critics (team: one hyperedge with every agent; group: per-agent top-k cosine neighbours with
+    ``n_edge_types`` Gumbel-softmax edge types; individual: one hyperedge per agent), each: encoder, GRU, node-to-edge
+    attention, edge-type weights, edge-to-node aggregation, value head (spec §1.2-1.8). Each critic node gets its own
+    agent's observation; the hypergraph provides the joint view (spec decision 12).
+
+    :param scales: which critics to build (any non-empty subset of ``("team", "group", "individual")``, in that order)
+    :param group_size: k, hyperedge size of the group scale (``num_in_group`` = 2)
+    :param n_edge_types: edge types of the group scale (``num_group`` = 3)
+    :param gumbel_tau: Gumbel-softmax temperature (0.5)
+    :param kwargs: see :class:`MultiAgentActorCriticPolicy`
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Schedule,
+        scales: tuple[str, ...] | list[str] = SCALES,
+        group_size: int = 2,
+        n_edge_types: int = 3,
+        gumbel_tau: float = 0.5,
+        **kwargs: Any,
+    ) -> None:
+        unknown = [scale for scale in scales if scale not in SCALES]
+        if not scales or unknown:
+            raise ValueError(f"scales must be a non-empty subset of {SCALES}, got {tuple(scales)}.")
+        self.critic_scales = tuple(scale for scale in SCALES if scale in scales)
+        if group_size < 1 or n_edge_types < 1:
+            raise ValueError(f"group_size and n_edge_types must be >= 1, got {group_size} and {n_edge_types}.")
+        self.group_size = group_size
+        self.n_edge_types = n_edge_types
+        self.gumbel_tau = gumbel_tau
+        super().__init__(observation_space, action_space, lr_schedule, **kwargs)
+
+    def _build_critics(self) -> nn.ModuleDict:
+        return nn.ModuleDict(
+            {
+                scale: ScaleCritic(
+                    self.obs_dim,
+                    self.n_agents,
+                    scale,
+                    group_size=self.group_size,
+                    n_edge_types=self.n_edge_types,
+                    hidden_size=self.hidden_size,
+                    activation_fn=self.activation_fn,
+                    gumbel_tau=self.gumbel_tau,
+                )
+                for scale in self.critic_scales
+            }
+        )
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(
+            scales=self.critic_scales, group_size=self.group_size, n_edge_types=self.n_edge_types, gumbel_tau=self.gumbel_tau
+        )
+        return data

@@ -1,0 +1,388 @@
+r"""
+Network modules of SAEIR (IJCAI-24): the recurrent actor trunk, one scale of the multi-scale hypergraph (MSHG)
+critic, and the running value normaliser.
+
+Reference: ``saeir-spec.md`` §1.2-§1.9 (critic) and §3 (actor). Paper: He et al., "SAEIR: Sequentially
+Accumulated Entropy Intrinsic Reward for Cooperative Multi-Agent Reinforcement Learning with Sparse Reward",
+IJCAI-24.
+"""
+
+import itertools
+from typing import Literal
+
+import torch as th
+from torch import nn
+
+from sb3_saeir.common.hypergraph import SCALES, build_incidence, edge_to_node, gumbel_softmax, node_to_edge
+
+_GainName = Literal["relu", "tanh", "leaky_relu", "sigmoid", "selu", "linear"]
+_GAIN_NAMES: dict[type[nn.Module], _GainName] = {
+    nn.ReLU: "relu",
+    nn.Tanh: "tanh",
+    nn.LeakyReLU: "leaky_relu",
+    nn.Sigmoid: "sigmoid",
+    nn.SELU: "selu",
+}
+
+
+def activation_gain(activation_fn: type[nn.Module]) -> float:
+    r"""
+    Orthogonal-init gain recommended for an activation (``nn.init.calculate_gain``): √2 for ReLU, 5/3 for Tanh.
+
+    :param activation_fn: Activation class.
+    :return: The gain (1 for activations without a recommendation).
+    """
+    return nn.init.calculate_gain(_GAIN_NAMES.get(activation_fn, "linear"))
+
+
+class FCBlock(nn.Sequential):
+    r"""
+    The authors' ``FC`` block: Linear → ReLU → LayerNorm(out), with PyTorch's default Linear init.
+
+    With ``out_dim == 1`` the LayerNorm returns its bias whatever the input (x - mean = 0): the block is a
+    learnable constant and passes no gradient to its input. This is how the released critic behaves (spec §1.8a)
+    and it is reproduced on purpose.
+
+    :param in_dim: Input size.
+    :param out_dim: Output size.
+    """
+
+    def __init__(self, in_dim: int, out_dim: int) -> None:
+        super().__init__(nn.Linear(in_dim, out_dim), nn.ReLU(), nn.LayerNorm(out_dim))
+
+
+class MLPEncoder(nn.Sequential):
+    r"""
+    MAPPO's feature encoder (spec §1.2 steps 1-3): LayerNorm(in) → [Linear → act → LayerNorm(hidden)] x n_layers.
+
+    Linear layers: orthogonal init with the gain of ``activation_fn`` (√2 ReLU, 5/3 Tanh), bias 0.
+    The authors' unused template block ``fc_h`` is not created.
+
+    :param in_dim: Input size.
+    :param hidden_size: Width of every layer.
+    :param activation_fn: Activation class (ReLU for GRF, Tanh for Cooperative Navigation).
+    :param n_layers: Number of Linear layers (2 = ``layer_N`` 1 in the authors' code).
+    """
+
+    def __init__(
+        self, in_dim: int, hidden_size: int = 64, activation_fn: type[nn.Module] = nn.Tanh, n_layers: int = 2
+    ) -> None:
+        layers: list[nn.Module] = [nn.LayerNorm(in_dim)]
+        for layer_in in [in_dim] + [hidden_size] * (n_layers - 1):
+            linear = nn.Linear(layer_in, hidden_size)
+            nn.init.orthogonal_(linear.weight, gain=activation_gain(activation_fn))
+            nn.init.zeros_(linear.bias)
+            layers += [linear, activation_fn(), nn.LayerNorm(hidden_size)]
+        super().__init__(*layers)
+
+
+class GRULayer(nn.Module):
+    r"""
+    One-layer GRU with episode resets and an output LayerNorm (MAPPO's ``RNNLayer``, spec §1.2 step 4).
+
+    Before step t the hidden state is multiplied by ``1 - episode_starts[t]``. The GRU runs in one call over each
+    stretch of steps without any reset, which gives the same result as a step-by-step loop.
+    GRU weights: orthogonal; biases: 0.
+
+    :param in_dim: Input size.
+    :param hidden_size: Hidden size.
+    """
+
+    def __init__(self, in_dim: int = 64, hidden_size: int = 64) -> None:
+        super().__init__()
+        self.gru = nn.GRU(in_dim, hidden_size, num_layers=1)
+        for name, param in self.gru.named_parameters():
+            if name.startswith("weight"):
+                nn.init.orthogonal_(param)
+            else:
+                nn.init.zeros_(param)
+        self.norm = nn.LayerNorm(hidden_size)
+
+    def forward(self, x: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        :param x: Input sequence ``(T, B, in_dim)``.
+        :param hidden: Hidden state before step 0, ``(B, H)``.
+        :param episode_starts: 1 where sequence b starts a new episode at step t, ``(T, B)``.
+        :return: LayerNorm'ed outputs ``(T, B, H)`` and the raw last hidden state ``(B, H)``.
+        """
+        keep = 1.0 - episode_starts.to(x.dtype)  # (T, B)
+        # Split the sequence where any sequence restarts (always at t = 0)
+        reset_steps = (keep[1:] < 1.0).any(dim=-1).nonzero().squeeze(-1) + 1
+        boundaries = [0, *reset_steps.tolist(), x.shape[0]]
+        outputs = []
+        for start, end in itertools.pairwise(boundaries):
+            hidden = hidden * keep[start].unsqueeze(-1)  # (B, H)
+            out, hidden_n = self.gru(x[start:end], hidden.unsqueeze(0).contiguous())  # (L, B, H), (1, B, H)
+            hidden = hidden_n.squeeze(0)  # (B, H)
+            outputs.append(out)
+        return self.norm(th.cat(outputs)), hidden
+
+
+class ActorNetwork(nn.Module):
+    r"""
+    Parameter-shared actor trunk (spec §3): MLPEncoder → GRULayer (if ``recurrent``).
+
+    The action head (SB3's ``action_net``) is not part of it.
+
+    :param obs_dim: Size of one agent's observation.
+    :param hidden_size: Width of the MLP and of the GRU.
+    :param activation_fn: MLP activation class.
+    :param recurrent: Whether to add the GRU (the authors' rMAPPO: True).
+    """
+
+    def __init__(
+        self, obs_dim: int, hidden_size: int = 64, activation_fn: type[nn.Module] = nn.Tanh, recurrent: bool = True
+    ) -> None:
+        super().__init__()
+        self.latent_dim = hidden_size
+        self.hidden_size = hidden_size
+        self.recurrent = recurrent
+        self.mlp = MLPEncoder(obs_dim, hidden_size, activation_fn)
+        self.gru = GRULayer(hidden_size, hidden_size) if recurrent else None
+
+    def forward(
+        self, obs: th.Tensor, hidden: th.Tensor | None = None, episode_starts: th.Tensor | None = None
+    ) -> tuple[th.Tensor, th.Tensor | None]:
+        r"""
+        :param obs: Observations ``(T, B, obs_dim)``.
+        :param hidden: GRU state before step 0, ``(B, H)``; None = zeros. Ignored if not recurrent.
+        :param episode_starts: ``(T, B)``, 1 where a new episode starts; None = no reset.
+        :return: Latent ``(T, B, H)`` and the new hidden state ``(B, H)`` (None if not recurrent).
+        """
+        latent = self.mlp(obs)  # (T, B, H)
+        if self.gru is None:
+            return latent, None
+        n_steps, batch_size = obs.shape[:2]
+        if hidden is None:
+            hidden = latent.new_zeros(batch_size, self.hidden_size)
+        if episode_starts is None:
+            episode_starts = latent.new_zeros(n_steps, batch_size)
+        return self.gru(latent, hidden, episode_starts)
+
+
+class ScaleCritic(nn.Module):
+    r"""
+    One scale of the multi-scale hypergraph (MSHG) critic, as released by the authors (spec §1.2-§1.7).
+
+    Per agent: MLPEncoder → GRULayer gives :math:`h_i`. Per (step, game), over its N agents, with incidence
+    :math:`H` of the scale (:func:`~sb3_saeir.common.hypergraph.build_incidence`) and ``FC`` = :class:`FCBlock`:
+
+    .. math::
+
+        x_i = \mathrm{FC}(h_i), \quad u_e = \sum_i H_{e,i} x_i, \quad a_{e,i} = \mathrm{FC}([x_i ; u_e]),
+        \quad g_e = \sum_i H_{e,i} \operatorname{softmax}_i(a_{e,\cdot} \odot H_{e,\cdot}) \, x_i,
+
+        z_e = \mathrm{FC}(g_e), \quad w_e = \sigma(\mathrm{FC}(z_e)) \cdot
+        \operatorname{GumbelSoftmax}_\tau(\mathrm{FC}(z_e)) \in \mathbb{R}^{T_K},
+
+        m_e = \sum_k w_{e,k} \, \mathrm{FC}^{(k)}\Big(\sum_i H_{e,i} h_i\Big), \quad
+        \bar s_i = \mathrm{FC}\Big(\tfrac{1}{N} \Big[\sum_e H_{e,i} m_e ; h_i\Big]\Big), \quad
+        v_i = W \bar s_i + b .
+
+    :math:`T_K` = 1 (team), ``n_edge_types`` (group) or N (individual). The 1-output heads (attention, factor,
+    team type logit) are constants, as in the released code (spec §1.8a). Values live in the normalised return
+    space of this scale's :class:`ValueNorm`. The Gumbel noise is drawn from the global torch RNG.
+
+    :param obs_dim: Size of one agent's critic input.
+    :param n_agents: Number of agents N of a game (nodes of every hypergraph).
+    :param scale: ``"team"``, ``"group"`` or ``"individual"``.
+    :param group_size: Hyperedge size k of the group scale (``num_in_group``); ``>= n_agents`` gives the team
+        incidence (with still ``n_edge_types`` types), as in the authors' code.
+    :param n_edge_types: Number of edge types of the group scale (``num_group``).
+    :param hidden_size: Width of every layer (64 in the authors' code).
+    :param activation_fn: Activation class of the MLP encoder.
+    :param gumbel_tau: Gumbel-softmax temperature.
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        n_agents: int,
+        scale: str,
+        group_size: int = 2,
+        n_edge_types: int = 3,
+        hidden_size: int = 64,
+        activation_fn: type[nn.Module] = nn.Tanh,
+        gumbel_tau: float = 0.5,
+    ) -> None:
+        super().__init__()
+        if scale not in SCALES:
+            raise ValueError(f"Unknown hypergraph scale {scale!r}, expected one of {SCALES}")
+        self.n_agents = n_agents
+        self.scale = scale
+        self.group_size = group_size
+        self.hidden_size = hidden_size
+        self.gumbel_tau = gumbel_tau
+        self.n_types = {"team": 1, "group": n_edge_types, "individual": n_agents}[scale]
+
+        self.mlp = MLPEncoder(obs_dim, hidden_size, activation_fn)
+        self.gru = GRULayer(hidden_size, hidden_size)
+        self.node2edge_start = FCBlock(hidden_size, hidden_size)
+        self.attention = FCBlock(2 * hidden_size, 1)
+        self.init_fc = FCBlock(hidden_size, hidden_size)
+        self.edge_type = FCBlock(hidden_size, self.n_types)
+        self.edge_factor = FCBlock(hidden_size, 1)
+        self.edge_aggregation = nn.ModuleList([FCBlock(hidden_size, hidden_size) for _ in range(self.n_types)])
+        self.node_end = FCBlock(2 * hidden_size, hidden_size)
+        self.value_net = nn.Linear(hidden_size, 1)
+        nn.init.orthogonal_(self.value_net.weight, gain=1.0)
+        nn.init.zeros_(self.value_net.bias)
+
+    def forward(
+        self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool = True
+    ) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        :param obs: Critic inputs ``(T, G, N, obs_dim)`` (G games, N agents).
+        :param hidden: GRU states before step 0, ``(G, N, H)``.
+        :param episode_starts: ``(T, G, N)``, 1 where a new episode starts.
+        :param gumbel_noise: Draw Gumbel noise for the edge types (authors: always); False = plain softmax.
+        :return: Values ``(T, G, N)`` and the new GRU states ``(G, N, H)``.
+        """
+        latent, new_hidden = self.forward_latent(obs, hidden, episode_starts, gumbel_noise)
+        return self.value_net(latent).squeeze(-1), new_hidden  # (T, G, N)
+
+    def forward_latent(
+        self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool = True
+    ) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        Node representations :math:`\bar s_i` before the value head.
+
+        :param obs: Critic inputs ``(T, G, N, obs_dim)``.
+        :param hidden: GRU states ``(G, N, H)``.
+        :param episode_starts: ``(T, G, N)``.
+        :param gumbel_noise: Whether to draw Gumbel noise.
+        :return: Latent ``(T, G, N, H)`` and the new GRU states ``(G, N, H)``.
+        """
+        n_steps, n_games, n_agents = obs.shape[:3]
+        features, new_hidden = self._encode(obs, hidden, episode_starts)  # (T, G, N, H), (G, N, H)
+        nodes = features.reshape(n_steps * n_games, n_agents, self.hidden_size)  # (T*G, N, H)
+        latent = self._message_passing(nodes, gumbel_noise)  # (T*G, N, H)
+        return latent.reshape(n_steps, n_games, n_agents, self.hidden_size), new_hidden
+
+    def _encode(self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        Per-agent MLP + GRU over the G·N agent sequences.
+
+        :param obs: ``(T, G, N, obs_dim)``.
+        :param hidden: ``(G, N, H)``.
+        :param episode_starts: ``(T, G, N)``.
+        :return: GRU features h ``(T, G, N, H)`` and new states ``(G, N, H)``.
+        """
+        n_steps, n_games, n_agents = obs.shape[:3]
+        x = self.mlp(obs).reshape(n_steps, n_games * n_agents, self.hidden_size)  # (T, G*N, H)
+        out, last = self.gru(
+            x,
+            hidden.reshape(n_games * n_agents, self.hidden_size),  # (G*N, H)
+            episode_starts.reshape(n_steps, n_games * n_agents),  # (T, G*N)
+        )
+        features = out.reshape(n_steps, n_games, n_agents, self.hidden_size)  # (T, G, N, H)
+        return features, last.reshape(n_games, n_agents, self.hidden_size)  # (G, N, H)
+
+    def _message_passing(self, nodes: th.Tensor, gumbel_noise: bool) -> th.Tensor:
+        r"""
+        One round of hypergraph message passing (spec §1.3-§1.6).
+
+        :param nodes: GRU features h of the N agents of each hypergraph, ``(B, N, H)``.
+        :param gumbel_noise: Whether to draw Gumbel noise.
+        :return: Node representations ``(B, N, H)``.
+        """
+        incidence = build_incidence(self.scale, nodes, self.group_size)  # (B, E, N)
+        edge_weights = self._edge_type_weights(nodes, incidence, gumbel_noise)  # (B, E, T_K)
+        raw_edges = incidence @ nodes  # (B, E, H), unweighted member sums of h
+        typed = th.stack([fc(raw_edges) for fc in self.edge_aggregation], dim=-2)  # (B, E, T_K, H)
+        messages = (edge_weights.unsqueeze(-1) * typed).sum(dim=-2)  # (B, E, H)
+        return self.node_end(edge_to_node(messages, incidence, nodes))  # (B, N, 2H) -> (B, N, H)
+
+    def _edge_type_weights(self, nodes: th.Tensor, incidence: th.Tensor, gumbel_noise: bool) -> th.Tensor:
+        r"""
+        Attention node→edge embedding, then the scaled Gumbel-softmax edge-type weights (spec §1.4-§1.5).
+
+        :param nodes: ``(B, N, H)``.
+        :param incidence: ``(B, E, N)``.
+        :param gumbel_noise: Whether to draw Gumbel noise.
+        :return: Edge-type weights :math:`w_e = \sigma_e \pi_e`, ``(B, E, T_K)``.
+        """
+        x = self.node2edge_start(nodes)  # (B, N, H)
+        edges_init = incidence @ x  # (B, E, H)
+        n_edges, n_agents = incidence.shape[-2:]
+        pairs = th.cat(
+            [
+                x.unsqueeze(-3).expand(-1, n_edges, -1, -1),  # (B, E, N, H): x_i
+                edges_init.unsqueeze(-2).expand(-1, -1, n_agents, -1),  # (B, E, N, H): u_e
+            ],
+            dim=-1,
+        )  # (B, E, N, 2H)
+        logits = self.attention(pairs).squeeze(-1)  # (B, E, N)
+        edges = self.init_fc(node_to_edge(x, incidence, logits))  # (B, E, H)
+        type_probs = gumbel_softmax(self.edge_type(edges), self.gumbel_tau, noise=gumbel_noise)  # (B, E, T_K)
+        return th.sigmoid(self.edge_factor(edges)) * type_probs  # (B, E, 1) * (B, E, T_K)
+
+
+class ValueNorm(nn.Module):
+    r"""
+    Running normaliser of the return targets of one scale (MAPPO's ``ValueNorm``, spec §1.9).
+
+    Exponential moving averages with weight :math:`\beta` of the batch mean, of the batch mean of squares and of
+    the debiasing term (EMA of 1), all over every element of the batch:
+
+    .. math::
+
+        \mu = \frac{m}{\max(d, \epsilon)}, \quad
+        \sigma^2 = \max\Big(\frac{s}{\max(d, \epsilon)} - \mu^2, 10^{-2}\Big), \quad
+        \operatorname{normalize}(x) = \frac{x - \mu}{\sigma} .
+
+    A fresh normaliser has :math:`\mu = 0`, :math:`\sigma = 0.1`. The paper says "PopArt"; the released code
+    uses this (the output layer is not rescaled).
+
+    :param beta: EMA weight.
+    :param epsilon: Lower clamp of the debiasing term.
+    :param min_var: Variance floor.
+    """
+
+    running_mean: th.Tensor
+    running_mean_sq: th.Tensor
+    debiasing_term: th.Tensor
+
+    def __init__(self, beta: float = 0.99999, epsilon: float = 1e-5, min_var: float = 1e-2) -> None:
+        super().__init__()
+        self.beta = beta
+        self.epsilon = epsilon
+        self.min_var = min_var
+        self.register_buffer("running_mean", th.zeros((), dtype=th.float64))
+        self.register_buffer("running_mean_sq", th.zeros((), dtype=th.float64))
+        self.register_buffer("debiasing_term", th.zeros((), dtype=th.float64))
+
+    @th.no_grad()
+    def update(self, x: th.Tensor) -> None:
+        r"""
+        :param x: A batch of return targets (any shape; all elements are pooled).
+        """
+        x = x.detach().to(self.running_mean.dtype)
+        self.running_mean.mul_(self.beta).add_((1.0 - self.beta) * x.mean())
+        self.running_mean_sq.mul_(self.beta).add_((1.0 - self.beta) * (x**2).mean())
+        self.debiasing_term.mul_(self.beta).add_(1.0 - self.beta)
+
+    def running_mean_var(self) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        :return: Debiased running mean and variance (0-d float64 tensors).
+        """
+        debias = self.debiasing_term.clamp(min=self.epsilon)
+        mean = self.running_mean / debias
+        var = (self.running_mean_sq / debias - mean**2).clamp(min=self.min_var)
+        return mean, var
+
+    def normalize(self, x: th.Tensor) -> th.Tensor:
+        r"""
+        :param x: Values in return space.
+        :return: :math:`(x - \mu) / \sigma`, same dtype as ``x``.
+        """
+        mean, var = self.running_mean_var()
+        return (x - mean.to(x.dtype)) / th.sqrt(var).to(x.dtype)
+
+    def denormalize(self, x: th.Tensor) -> th.Tensor:
+        r"""
+        :param x: Values in normalised space.
+        :return: :math:`x \sigma + \mu`, same dtype as ``x``.
+        """
+        mean, var = self.running_mean_var()
+        return x * th.sqrt(var).to(x.dtype) + mean.to(x.dtype)

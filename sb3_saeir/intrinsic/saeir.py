@@ -1,0 +1,221 @@
+"""Sequentially accumulated entropy intrinsic reward (SAEIR, IJCAI-24), as a pure NumPy function.
+
+Reference: ``saeir-spec.md`` §2 (the released code) and the paper's Eqs. 11-15.
+"""
+
+import numpy as np
+
+from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
+
+_VARIANTS = ("code", "paper")
+
+
+def saeir_bonus(
+    values: np.ndarray,
+    variant: str = "code",
+    episode_starts: np.ndarray | None = None,
+    last_values: np.ndarray | None = None,
+) -> np.ndarray:
+    r"""
+    Unscaled SAEIR bonus of every stored step, computed from the stored critic outputs of one scale.
+
+    The window of a step is the stretch of the rollout that precedes it: by default the whole rollout
+    buffer window (the authors' behaviour, dones are ignored), or the current episode when ``episode_starts``
+    is given. Everything is computed independently for every trailing index (env, agent, scale, ...).
+    The result is **not** multiplied by the intrinsic coefficient :math:`\beta` (0.1 in the released code).
+
+    **variant="code"** (spec §2.2, the released code). With :math:`p^{(n)}_j = e^{v_j} / \sum_{l<n} e^{v_l}`
+    the softmax over the first :math:`n` window entries and
+
+    .. math::
+
+        H_n = -\sum_{j<n} p^{(n)}_j \log p^{(n)}_j, \qquad H_0 = 0,
+
+        r_t = H_t \, \mathbb{1}[H_t > H_{t+1}],
+
+    i.e. step :math:`t` is rewarded with the entropy of the value-softmax over the *preceding* window steps
+    whenever appending :math:`v_t` lowers that entropy. The bootstrap value is never used. It is evaluated in
+    :math:`O(T)` with a running log-sum-exp :math:`L_{n+1} = \operatorname{logaddexp}(L_n, v_n)` and the
+    grouping identity (spec §2.3), which is algebraically equal to :math:`H_n = \log S_n - A_n / S_n` of
+    spec §2.6 but has no cancellation and no overflow:
+
+    .. math::
+
+        q_n = e^{v_n - L_{n+1}}, \qquad
+        H_{n+1} = -q_n \log q_n - (1 - q_n) \log (1 - q_n) + (1 - q_n) H_n .
+
+    Steps 0 and 1 of a window never fire (:math:`H_0 = H_1 = 0`). The code's :math:`10^{-8}` clamps are
+    not reproduced; they change the result by less than :math:`10^{-7}` in normal ranges (spec §2.6).
+    Worked example (spec §2.6): values ``[0, 0, 2, 0.5, 3]`` give ``[0, 0, log 2, 0, 0]`` (only ``t=2`` fires,
+    :math:`H_2 = \log 2 \approx 0.693 > H_3 \approx 0.666`).
+
+    **variant="paper"** (Eqs. 12-14 read literally, spec §2.5). The per-state term of step :math:`t` with a
+    window of the first :math:`n` steps is
+
+    .. math::
+
+        p_t(n) = \frac{e^{v_t}}{\sum_{l<n} e^{v_l}}, \qquad \hat e_t(n) = -p_t(n) \log p_t(n),
+
+        r_t = \hat e_t(t+1) \, \mathbb{1}[\hat e_t(t+1) > \hat e_t(t+2)],
+
+    where :math:`\hat e_t(t+1)` ("T", the window ends at :math:`t`) and :math:`\hat e_t(t+2)` ("T+1", the
+    window ends at :math:`t+1`). This needs a **one-step look-ahead** :math:`v_{t+1}`: at the last step of
+    the rollout ``last_values`` (the bootstrap values) play the role of :math:`v_T`; without them the last
+    step gets 0. With ``episode_starts`` the look-ahead never crosses into the next episode: the last step of
+    every episode that ends inside the rollout gets 0. ``last_values`` are assumed to continue the episode of
+    step :math:`T-1`; where that episode ended at the last step, zero the last row of the result yourself
+    (e.g. ``bonus[-1] *= 1 - last_dones``).
+
+    :param values: Stored critic outputs of one scale, time first: shape ``(T, ...)``,
+        e.g. ``(T, n_envs, n_agents)`` or ``(T, n_envs, n_agents, n_scales)``.
+    :param variant: ``"code"`` (released code, spec §2.2/§2.6) or ``"paper"`` (Eqs. 12-14, literal).
+    :param episode_starts: Optional, 1 where a new episode starts at step ``t``; shape ``(T, ...)`` whose
+        axes are aligned from the **left** with ``values`` (missing trailing axes are broadcast, so
+        ``(T, n_envs)`` works for ``values`` of shape ``(T, n_envs, n_agents)``). When given, the entropy
+        window restarts at those steps. ``None`` (default) = the authors' behaviour: one window for the whole
+        rollout, dones ignored.
+    :param last_values: Values of the step after the rollout, shape ``values.shape[1:]`` (broadcastable).
+        Only used by ``variant="paper"`` as the look-ahead of the last step; ignored by ``"code"``.
+    :return: The unscaled bonus, same shape as ``values``; dtype of ``values`` if it is a float dtype,
+        float64 otherwise.
+    """
+    values = np.asarray(values)
+    if variant not in _VARIANTS:
+        raise ValueError(f"Unknown SAEIR variant {variant!r}, expected one of {_VARIANTS}")
+    if values.ndim == 0:
+        raise ValueError("`values` must have a leading time axis, got a 0-d array")
+    out_dtype = values.dtype if np.issubdtype(values.dtype, np.floating) else np.float64
+    values64 = values.astype(np.float64)
+    if values64.shape[0] == 0:
+        return np.zeros(values.shape, dtype=out_dtype)
+    starts = None if episode_starts is None else _broadcast_starts(episode_starts, values64.shape)
+
+    log_norm, entropy_before, entropy_after = _running_window_stats(values64, starts)
+    if variant == "code":
+        bonus = np.where(entropy_before > entropy_after, entropy_before, 0.0)
+    else:
+        bonus = _paper_bonus(values64, log_norm, starts, last_values)
+    return bonus.astype(out_dtype, copy=False)
+
+
+def _broadcast_starts(episode_starts: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """
+    Broadcast episode starts to ``shape``, aligning axes from the left (time first).
+
+    :param episode_starts: Array of shape ``(T, ...)``.
+    :param shape: Shape of the values, ``(T, ...)``.
+    :return: Boolean array of shape ``shape``.
+    """
+    starts = np.asarray(episode_starts).astype(bool)
+    if starts.ndim == 0 or starts.ndim > len(shape) or starts.shape[0] != shape[0]:
+        raise ValueError(f"`episode_starts` of shape {starts.shape} does not match values of shape {shape}")
+    # (T, a, b) -> (T, a, b, 1, ..., 1) so that NumPy broadcasting aligns the leading axes
+    starts = starts.reshape(starts.shape + (1,) * (len(shape) - starts.ndim))
+    return np.broadcast_to(starts, shape)
+
+
+def _running_window_stats(values: np.ndarray, starts: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    One O(T) pass over time, vectorised over the trailing axes.
+
+    :param values: Float64 array ``(T, ...)``.
+    :param starts: Boolean array ``(T, ...)`` or None (one window for the whole rollout).
+    :return: ``log_norm[t]`` = log-sum-exp of the window values up to and including ``t``;
+        ``entropy_before[t]`` = :math:`H_t` (window up to ``t - 1``); ``entropy_after[t]`` = :math:`H_{t+1}`
+        (window up to ``t``). All of shape ``(T, ...)``.
+    """
+    log_norm = np.empty_like(values)
+    entropy_before = np.empty_like(values)
+    entropy_after = np.empty_like(values)
+    prev_log_norm = np.full(values.shape[1:], -np.inf)  # L_0 = log(0): empty window
+    entropy = np.zeros(values.shape[1:])  # H_0 = 0
+    for t in range(values.shape[0]):
+        if starts is not None:
+            prev_log_norm = np.where(starts[t], -np.inf, prev_log_norm)
+            entropy = np.where(starts[t], 0.0, entropy)
+        entropy_before[t] = entropy
+        new_log_norm = np.logaddexp(prev_log_norm, values[t])
+        log_share = values[t] - new_log_norm  # log q_t, q_t = share of the new step
+        empty = np.isneginf(prev_log_norm)
+        log_keep = np.where(empty, 0.0, prev_log_norm - new_log_norm)  # log(1 - q_t), finite placeholder if empty
+        keep = np.where(empty, 0.0, np.exp(log_keep))  # 1 - q_t
+        entropy = -np.exp(log_share) * log_share - keep * log_keep + keep * entropy
+        entropy_after[t] = entropy
+        log_norm[t] = new_log_norm
+        prev_log_norm = new_log_norm
+    return log_norm, entropy_before, entropy_after
+
+
+def _paper_bonus(
+    values: np.ndarray, log_norm: np.ndarray, starts: np.ndarray | None, last_values: np.ndarray | None
+) -> np.ndarray:
+    """
+    Literal Eqs. 12-14: per-state entropy term with the window ending at t vs. at t + 1.
+
+    :param values: Float64 array ``(T, ...)``.
+    :param log_norm: Log-sum-exp of the window up to and including ``t``, ``(T, ...)``.
+    :param starts: Boolean episode starts ``(T, ...)`` or None.
+    :param last_values: Look-ahead values for the last step, ``values.shape[1:]``, or None.
+    :return: The bonus, ``(T, ...)``.
+    """
+    next_values = np.empty_like(values)
+    next_values[:-1] = values[1:]
+    next_values[-1] = 0.0 if last_values is None else np.broadcast_to(np.asarray(last_values, np.float64), values.shape[1:])
+    has_next = np.ones(values.shape, dtype=bool)
+    has_next[-1] = last_values is not None
+    if starts is not None:
+        has_next[:-1] &= ~starts[1:]  # no look-ahead across an episode boundary
+
+    log_p_now = values - log_norm  # log p_t(t+1), (T, ...)
+    log_p_next = values - np.logaddexp(log_norm, next_values)  # log p_t(t+2), (T, ...)
+    term_now = -np.exp(log_p_now) * log_p_now
+    term_next = -np.exp(log_p_next) * log_p_next
+    return np.where(has_next & (term_now > term_next), term_now, 0.0)
+
+
+class SAEIRCallback(IntrinsicRewardCallback):
+    """SAEIR as a callback: the bonus of every critic scale from that scale's stored values (spec §2).
+
+    For each scale K, game and agent, ``saeir_bonus`` runs over the rollout window of the stored (normalised,
+    detached) critic outputs; ``coef * bonus`` enters only that scale's TD errors (spec §2.4). Added automatically by
+    ``SAEIR_PPO(intrinsic_reward="saeir")``; with ``intrinsic_reward=None`` it can be passed to ``learn`` explicitly
+    (the SAE-only ablation uses it on a single MAPPO critic).
+
+    Logs ``rollout/intrinsic_reward_mean`` (unscaled, all scales), and per scale
+    ``rollout/intrinsic_reward_mean_<scale>`` and ``rollout/intrinsic_fire_rate_<scale>`` (fraction of steps where
+    the bonus fired).
+
+    :param coef: beta (0.1 in the released code)
+    :param variant: ``"code"`` (released code, default) or ``"paper"`` (Eqs. 12-14 literally)
+    :param reset_at_episode_start: restart the entropy window at episode starts instead of using the whole rollout
+        window (the authors' behaviour); identical for Cooperative Navigation with ``n_steps`` = episode length
+    :param verbose: verbosity
+    """
+
+    def __init__(
+        self, coef: float = 0.1, variant: str = "code", reset_at_episode_start: bool = False, verbose: int = 0
+    ) -> None:
+        if variant not in _VARIANTS:
+            raise ValueError(f"Unknown SAEIR variant {variant!r}; choose one of {_VARIANTS}.")
+        super().__init__(coef=coef, name="intrinsic", verbose=verbose)
+        self.variant = variant
+        self.reset_at_episode_start = reset_at_episode_start
+
+    def compute_bonus(self, buffer: GroupedRecurrentRolloutBuffer) -> np.ndarray:
+        episode_starts = buffer.episode_starts if self.reset_at_episode_start else None
+        last_values = None
+        if self.variant == "paper" and buffer.last_values is not None:
+            # the look-ahead of the last step: the bootstrap value, unless that step ended the episode
+            last_values = buffer.last_values
+        bonus = saeir_bonus(buffer.values, variant=self.variant, episode_starts=episode_starts, last_values=last_values)
+        if last_values is not None and buffer.last_dones is not None:
+            bonus[-1] *= (1.0 - buffer.last_dones)[:, None]
+        return bonus  # (T, E, K)
+
+    def _log_bonus(self, bonus: np.ndarray, buffer: GroupedRecurrentRolloutBuffer) -> None:
+        self.logger.record("rollout/intrinsic_reward_mean", float(bonus.mean()))
+        scales = getattr(self.model.policy, "scales", tuple(f"scale{k}" for k in range(bonus.shape[-1])))
+        for k, scale in enumerate(scales):
+            self.logger.record(f"rollout/intrinsic_reward_mean_{scale}", float(bonus[..., k].mean()))
+            self.logger.record(f"rollout/intrinsic_fire_rate_{scale}", float((bonus[..., k] > 0).mean()))

@@ -15,13 +15,14 @@ import torch as th
 from stable_baselines3 import PPO
 from stable_baselines3.common.logger import configure
 
-from sb3_saeir import make_multiagent_vec_env
+from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.callbacks import EpisodeMetricsCallback
 from sb3_saeir.evaluation import evaluate_multiagent_policy
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--algo", choices=["saeir_ppo", "ppo"], default="saeir_ppo", help="ppo: plain SB3 PPO (IPPO)")
     parser.add_argument("--task", default="cn-sparse-n3")
     parser.add_argument("--n-games", type=int, default=16)
     parser.add_argument("--timesteps", type=int, default=300_000, help="agent-steps")
@@ -32,9 +33,14 @@ def main() -> None:
     th.set_num_threads(1)
 
     env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed)
-    model = PPO("MlpPolicy", env, n_steps=125, batch_size=500, n_epochs=10, seed=args.seed, verbose=0)
+    if args.algo == "saeir_ppo":  # the paper's Cooperative Navigation settings are SAEIR_PPO's defaults
+        model = SAEIR_PPO("MSHGPolicy", env, seed=args.seed)
+        callback = None
+    else:
+        model = PPO("MlpPolicy", env, n_steps=125, batch_size=500, n_epochs=10, seed=args.seed)
+        callback = EpisodeMetricsCallback()
     model.set_logger(configure(args.out, ["stdout", "csv", "tensorboard"]))
-    model.learn(args.timesteps, callback=EpisodeMetricsCallback())
+    model.learn(args.timesteps, callback=callback, log_interval=10)
     model_path = os.path.join(args.out, "model.zip")
     model.save(model_path)
 

@@ -36,6 +36,19 @@ def valid_batch_sizes(n_steps: int, n_games: int, n_agents: int, data_chunk_leng
     return [block * per_batch for per_batch in range(1, n_blocks + 1) if n_blocks % per_batch == 0]
 
 
+def scale_advantage_weights(advantages: th.Tensor) -> th.Tensor:
+    """Weights W_K of the critic scales for one minibatch (spec §1.10, the authors' code):
+
+    .. math:: W_K = \\frac{\\sum_j \\exp(\\hat A^K_j)}{\\sum_{K'} \\sum_j \\exp(\\hat A^{K'}_j)}
+
+    computed as a softmax over K of per-scale log-sum-exps (no overflow). No gradient flows through them.
+
+    :param advantages: standardised advantages of the minibatch's valid samples, ``(n_samples, K)``
+    :return: ``(K,)`` weights summing to 1
+    """
+    return th.softmax(th.logsumexp(advantages.detach(), dim=0), dim=0)
+
+
 class SAEIR_PPO(PPO):
     """Recurrent multi-agent PPO with SAEIR (IJCAI-24): multi-scale hypergraph critics + entropy intrinsic reward.
 
@@ -444,11 +457,9 @@ class SAEIR_PPO(PPO):
         values, log_prob, entropy = self.policy.evaluate_actions(
             samples.observations, samples.actions, samples.actor_states, samples.critic_states, samples.episode_starts
         )
-        # Scale weights W_K (spec §1.10): W_K = sum_j exp(A^K_j) / sum_K' sum_j exp(A^K'_j) over the valid rows
         advantages = samples.advantages  # (L, B, N, K)
-        valid_adv = advantages[samples.mask]  # (n_valid_rows, N, K)
-        log_sums = th.logsumexp(valid_adv.reshape(-1, self.policy.n_scales), dim=0)  # (K,)
-        weights = th.softmax(log_sums, dim=0)  # (K,)
+        # (n_valid_rows, N, K) -> (n_valid_rows * N, K)
+        weights = scale_advantage_weights(advantages[samples.mask].reshape(-1, self.policy.n_scales))  # (K,)
         mixed_advantages = (advantages * weights).sum(dim=-1)  # (L, B, N)
 
         # clipped surrogate objective

@@ -126,7 +126,7 @@ def test_predict_any_number_of_agents_with_state(env):
     obs = env.reset()
     actions, state = model.predict(obs, deterministic=True)
     assert actions.shape == (6,) and state.shape == (6, 8)
-    actions2, state2 = model.predict(obs, state=state, episode_start=np.zeros(6), deterministic=True)
+    _, state2 = model.predict(obs, state=state, episode_start=np.zeros(6), deterministic=True)
     assert not np.allclose(state, state2)  # the GRU state moved on
     # episode_start resets the state: same as a fresh call
     _, state_reset = model.predict(obs, state=state2, episode_start=np.ones(6), deterministic=True)

@@ -17,7 +17,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
-from sb3_saeir.common.torch_layers import ActorNetwork, ScaleCritic, ValueNorm
+from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm
 
 SCALES = ("team", "group", "individual")
 
@@ -411,3 +411,54 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
             scales=self.critic_scales, group_size=self.group_size, n_edge_types=self.n_edge_types, gumbel_tau=self.gumbel_tau
         )
         return data
+
+
+class MAPPOPolicy(MultiAgentActorCriticPolicy):
+    """Recurrent MAPPO (Yu et al., NeurIPS 2022 D&B): the same actor as :class:`MSHGPolicy`, one recurrent critic.
+
+    The critic sees the concatenation of the game's agents' observations (``critic_input="joint"``, MAPPO's choice on
+    MPE) or each agent's own observation (``"own"``, MAPPO's choice on football, whose observations are global).
+    ``spectral_norm=("output",)`` gives SN-MAPPO (spectral normalisation of the critic's output layer, Mehta et al.
+    2023); ``("output", "hidden")`` normalises every critic Linear layer.
+
+    :param critic_input: ``"joint"`` or ``"own"``
+    :param spectral_norm: critic layers to normalise (``"output"``, ``"hidden"``)
+    :param kwargs: see :class:`MultiAgentActorCriticPolicy`
+    """
+
+    default_spectral_norm: tuple[str, ...] = ()
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Schedule,
+        critic_input: str = "joint",
+        spectral_norm: tuple[str, ...] | list[str] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        self.critic_input = critic_input
+        self.spectral_norm = tuple(self.default_spectral_norm if spectral_norm is None else spectral_norm)
+        super().__init__(observation_space, action_space, lr_schedule, **kwargs)
+
+    def _build_critics(self) -> nn.ModuleDict:
+        critic = RecurrentValueCritic(
+            self.obs_dim,
+            self.n_agents,
+            critic_input=self.critic_input,
+            hidden_size=self.hidden_size,
+            activation_fn=self.activation_fn,
+            spectral_norm=self.spectral_norm,
+        )
+        return nn.ModuleDict({"critic": critic})
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(critic_input=self.critic_input, spectral_norm=self.spectral_norm)
+        return data
+
+
+class SNMAPPOPolicy(MAPPOPolicy):
+    """SN-MAPPO: :class:`MAPPOPolicy` with spectral normalisation on the critic's output layer by default."""
+
+    default_spectral_norm = ("output",)

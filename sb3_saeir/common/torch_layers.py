@@ -386,3 +386,80 @@ class ValueNorm(nn.Module):
         """
         mean, var = self.running_mean_var()
         return x * th.sqrt(var).to(x.dtype) + mean.to(x.dtype)
+
+
+class RecurrentValueCritic(nn.Module):
+    r"""
+    MAPPO's recurrent critic (one scale): MLPEncoder → GRULayer → Linear(H→1) value head, on either the joint
+    observation of a game or each agent's own observation.
+
+    - ``critic_input="joint"`` (MAPPO on MPE): every agent's node gets the concatenation of all N agents'
+      observations of its game, so the value is the same for every agent; it is computed once per game.
+    - ``critic_input="own"`` (MAPPO on football, where the 115-d observation is already global): each agent's own
+      observation.
+
+    Spectral normalisation (SN-MAPPO, Mehta et al. 2023) wraps the chosen Linear layers with
+    ``torch.nn.utils.parametrizations.spectral_norm``: ``"output"`` (the value head, the paper's ``critic_spectral="nny"``)
+    and/or ``"hidden"`` (the encoder's Linear layers).
+
+    :param obs_dim: one agent's observation size d
+    :param n_agents: agents per game N
+    :param critic_input: ``"joint"`` or ``"own"``
+    :param hidden_size: width of the encoder and the GRU
+    :param activation_fn: encoder activation
+    :param spectral_norm: layers to normalise, any of ``("output", "hidden")``
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        n_agents: int,
+        critic_input: str = "joint",
+        hidden_size: int = 64,
+        activation_fn: type[nn.Module] = nn.Tanh,
+        spectral_norm: tuple[str, ...] = (),
+    ) -> None:
+        super().__init__()
+        if critic_input not in ("joint", "own"):
+            raise ValueError(f"critic_input must be 'joint' or 'own', got {critic_input!r}.")
+        unknown = [name for name in spectral_norm if name not in ("output", "hidden")]
+        if unknown:
+            raise ValueError(f"spectral_norm entries must be 'output' or 'hidden', got {unknown}.")
+        self.n_agents = n_agents
+        self.critic_input = critic_input
+        self.hidden_size = hidden_size
+        in_dim = obs_dim * n_agents if critic_input == "joint" else obs_dim
+        self.mlp = MLPEncoder(in_dim, hidden_size, activation_fn)
+        self.gru = GRULayer(hidden_size, hidden_size)
+        self.value_net = nn.Linear(hidden_size, 1)
+        nn.init.orthogonal_(self.value_net.weight, gain=1.0)
+        nn.init.zeros_(self.value_net.bias)
+        if "hidden" in spectral_norm:
+            for module in self.mlp:
+                if isinstance(module, nn.Linear):
+                    nn.utils.parametrizations.spectral_norm(module)
+        if "output" in spectral_norm:
+            nn.utils.parametrizations.spectral_norm(self.value_net)
+
+    def forward(
+        self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool = True
+    ) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        :param obs: ``(T, G, N, d)``
+        :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input)
+        :param episode_starts: ``(T, G, N)``
+        :param gumbel_noise: unused (same signature as :class:`ScaleCritic`)
+        :return: values ``(T, G, N)`` and new states ``(G, N, H)``
+        """
+        n_steps, n_games, n_agents, _ = obs.shape
+        if self.critic_input == "joint":
+            joint = obs.reshape(n_steps, n_games, -1)  # (T, G, N * d)
+            latent, new_hidden = self.gru(self.mlp(joint), hidden[:, 0], episode_starts[..., 0])  # (T, G, H), (G, H)
+            values = self.value_net(latent).expand(n_steps, n_games, n_agents)  # (T, G, 1) -> (T, G, N)
+            return values, new_hidden.unsqueeze(1).expand(n_games, n_agents, self.hidden_size).contiguous()
+        flat = obs.reshape(n_steps, n_games * n_agents, -1)  # (T, G * N, d)
+        flat_hidden = hidden.reshape(n_games * n_agents, -1)  # (G * N, H)
+        flat_starts = episode_starts.reshape(n_steps, n_games * n_agents)  # (T, G * N)
+        latent, new_hidden = self.gru(self.mlp(flat), flat_hidden, flat_starts)
+        values = self.value_net(latent).reshape(n_steps, n_games, n_agents)  # (T, G * N, 1) -> (T, G, N)
+        return values, new_hidden.reshape(n_games, n_agents, -1)

@@ -18,7 +18,7 @@ from torch.nn import functional as F
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, GroupedRecurrentSamples
 from sb3_saeir.common.callbacks import episode_metric_means
-from sb3_saeir.common.policies import MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates
+from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 from sb3_saeir.intrinsic.saeir import SAEIRCallback
 
@@ -101,7 +101,12 @@ class SAEIR_PPO(PPO):
     :param _init_setup_model: build networks and buffer now
     """
 
-    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"MSHGPolicy": MSHGPolicy, "MlpPolicy": MSHGPolicy}
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MSHGPolicy": MSHGPolicy,
+        "MlpPolicy": MSHGPolicy,
+        "MAPPOPolicy": MAPPOPolicy,
+        "SNMAPPOPolicy": SNMAPPOPolicy,
+    }
     policy: MultiAgentActorCriticPolicy
     rollout_buffer: GroupedRecurrentRolloutBuffer
 

@@ -1,0 +1,102 @@
+"""MAPPO, SN-MAPPO and the ablations in the same machinery as SAEIR_PPO."""
+
+import numpy as np
+import pytest
+import torch as th
+from gymnasium import spaces
+
+from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.common.policies import MAPPOPolicy, SNMAPPOPolicy
+from sb3_saeir.common.torch_layers import RecurrentValueCritic
+from sb3_saeir.intrinsic import saeir_bonus
+
+TINY = dict(n_steps=10, n_epochs=1)
+
+
+@pytest.fixture
+def env():
+    vec_env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
+    yield vec_env
+    vec_env.close()
+
+
+@pytest.mark.parametrize(
+    "policy, kwargs, scales, bonus",
+    [
+        ("MAPPOPolicy", {}, ("critic",), False),  # MAPPO
+        ("SNMAPPOPolicy", {}, ("critic",), False),  # SN-MAPPO
+        ("MSHGPolicy", {}, ("team", "group", "individual"), False),  # MSHG-only ablation
+        ("MAPPOPolicy", dict(intrinsic_reward="saeir"), ("critic",), True),  # SAE-only ablation
+    ],
+)
+def test_methods_train_two_iterations(env, policy, kwargs, scales, bonus):
+    model = MAPPO(policy, env, seed=0, **TINY, **kwargs).learn(2 * 10 * env.num_envs)
+    assert model.num_timesteps == 2 * 10 * env.num_envs
+    assert model.policy.scales == scales
+    buffer = model.rollout_buffer
+    expected = 0.1 * saeir_bonus(buffer.values) if bonus else np.zeros_like(buffer.values)
+    np.testing.assert_allclose(buffer.intrinsic_rewards, expected, atol=1e-6)
+
+
+def test_mappo_defaults():
+    assert MAPPO.policy_aliases["MlpPolicy"] is MAPPOPolicy
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
+    assert MAPPO("MlpPolicy", env).intrinsic_reward is None
+    assert SAEIR_PPO("MAPPOPolicy", env).intrinsic_reward == "saeir"
+    env.close()
+
+
+def test_joint_critic_sees_the_concatenation_and_gives_one_value_per_game():
+    critic = RecurrentValueCritic(obs_dim=4, n_agents=3, critic_input="joint", hidden_size=8)
+    obs = th.randn(5, 2, 3, 4)  # (T, G, N, d)
+    values, hidden = critic(obs, th.zeros(2, 3, 8), th.zeros(5, 2, 3))
+    assert values.shape == (5, 2, 3) and hidden.shape == (2, 3, 8)
+    assert th.allclose(values, values[..., :1].expand_as(values))  # same value for the agents of a game
+    # it is a function of the joint observation: the encoder's input LayerNorm has N * d features
+    assert critic.mlp[0].normalized_shape == (12,)
+    # permuting agents changes the joint input (concatenation order) -> different values
+    permuted, _ = critic(obs[:, :, [2, 0, 1]], th.zeros(2, 3, 8), th.zeros(5, 2, 3))
+    assert not th.allclose(permuted, values)
+
+
+def test_own_observation_critic():
+    critic = RecurrentValueCritic(obs_dim=4, n_agents=3, critic_input="own", hidden_size=8)
+    obs = th.randn(1, 2, 3, 4)
+    values, _ = critic(obs, th.zeros(2, 3, 8), th.zeros(1, 2, 3))
+    # agent 0 of game 0 alone through the same network gives the same value
+    alone, _ = critic(obs[:, :1, :1].expand(1, 1, 3, 4).contiguous(), th.zeros(1, 3, 8), th.zeros(1, 1, 3))
+    assert th.allclose(values[0, 0, 0], alone[0, 0, 0], atol=1e-6)
+
+
+@pytest.mark.parametrize("layers", [("output",), ("output", "hidden")])
+def test_spectral_norm_largest_singular_value_is_one(layers):
+    critic = RecurrentValueCritic(obs_dim=6, n_agents=3, hidden_size=16, spectral_norm=layers)
+    critic.train()
+    with th.no_grad():  # a few power iterations
+        for _ in range(30):
+            critic(th.randn(2, 4, 3, 6), th.zeros(4, 3, 16), th.zeros(2, 4, 3))
+    critic.eval()
+    normalized = [critic.value_net] + ([m for m in critic.mlp if isinstance(m, th.nn.Linear)] if "hidden" in layers else [])
+    for layer in normalized:
+        assert th.linalg.svdvals(layer.weight.detach())[0].item() == pytest.approx(1.0, abs=1e-3)
+    if "hidden" not in layers:  # un-normalised encoder layers keep their orthogonal init (singular values = gain)
+        linear = next(m for m in critic.mlp if isinstance(m, th.nn.Linear))
+        assert th.linalg.svdvals(linear.weight.detach())[0].item() > 1.5
+
+
+def test_sn_policy_default_and_save_load(env, tmp_path):
+    policy = SNMAPPOPolicy(spaces.Box(-1, 1, (18,)), spaces.Discrete(5), lambda _: 1e-3, n_agents=3)
+    assert policy.spectral_norm == ("output",)
+    model = MAPPO("SNMAPPOPolicy", env, seed=0, **TINY).learn(10 * env.num_envs)
+    obs = env.reset()
+    model.save(tmp_path / "sn.zip")
+    loaded = MAPPO.load(tmp_path / "sn.zip", env=env)
+    np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0])
+    assert loaded.policy.spectral_norm == ("output",)
+
+
+def test_bad_critic_options():
+    with pytest.raises(ValueError, match="critic_input"):
+        RecurrentValueCritic(4, 3, critic_input="global")
+    with pytest.raises(ValueError, match="spectral_norm"):
+        RecurrentValueCritic(4, 3, spectral_norm=("all",))

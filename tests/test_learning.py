@@ -39,7 +39,8 @@ def test_saeir_ppo_beats_random_coverage():
         f"coverage rate (final step): SAEIR_PPO {trained['coverage_rate_mean']:.3f}, random {random['coverage_rate_mean']:.3f}"
     )
     print(
-        f"coverage over steps: SAEIR_PPO {trained['coverage_over_steps_mean']:.3f}, random {random['coverage_over_steps_mean']:.3f}"
+        f"coverage over steps: SAEIR_PPO {trained['coverage_over_steps_mean']:.3f}, "
+        f"random {random['coverage_over_steps_mean']:.3f}"
     )
     # "clearly above": at least three times the random rate and 0.05 (absolute) higher
     assert trained["coverage_rate_mean"] >= max(3 * random["coverage_rate_mean"], random["coverage_rate_mean"] + 0.05)

@@ -1,9 +1,11 @@
-"""Agent-steps per second on a multi-agent vec env: random stepping and training, in one run.
+"""Agent-steps per second on a multi-agent vec env: random stepping and training of each method, in one run.
 
-    python benchmarks/throughput.py --task cn-sparse-n3 --n-games 16 --steps 100000 --algos random ppo
+    python benchmarks/throughput.py --task cn-sparse-n3 --n-games 16 --steps 100000 --algos random ippo mappo saeir_ppo
 
-Every algorithm gets the same ``n_steps``, ``n_epochs`` and ``batch_size``; the ratios to the first trained algorithm
-are printed. Timings on shared machines are noisy: compare ratios from one run, not absolute figures across runs.
+Each method trains with its packaged config (``zoo_configs/<algo>.yml``) except the number of games; all configs
+share ``n_steps=25``, ``n_epochs=10`` and one minibatch per epoch (the whole rollout), so every method gets the same
+rollout and update schedule. Ratios to the first trained method are printed. Timings on shared machines are noisy:
+compare ratios from one run, not absolute figures across runs.
 """
 
 from __future__ import annotations
@@ -11,14 +13,12 @@ from __future__ import annotations
 import argparse
 import resource
 import time
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 import torch as th
-from stable_baselines3 import PPO
 
 from sb3_saeir import make_multiagent_vec_env
+from sb3_saeir.config import ALGOS, build_model
 
 
 def random_stepping(task: str, n_games: int, agent_steps: int, seed: int) -> float:
@@ -35,24 +35,11 @@ def random_stepping(task: str, n_games: int, agent_steps: int, seed: int) -> flo
     return n_vec_steps * env.num_envs / elapsed
 
 
-def algorithm_builders() -> dict[str, Callable[..., Any]]:
-    """Name -> ``builder(env, **common_kwargs)``; algorithms that are not installed yet are skipped."""
-    builders: dict[str, Callable[..., Any]] = {"ppo": lambda env, **kw: PPO("MlpPolicy", env, **kw)}
-    try:
-        from sb3_saeir import SAEIR_PPO  # type: ignore[attr-defined]
-
-        builders["saeir_ppo"] = lambda env, **kw: SAEIR_PPO("MSHGPolicy", env, **kw)
-    except ImportError:
-        pass
-    return builders
-
-
-def training(builder: Callable[..., Any], task: str, n_games: int, agent_steps: int, seed: int, **kwargs: Any) -> float:
-    """Agent-steps/s of ``learn`` (rollout + update)."""
-    env = make_multiagent_vec_env(task, n_games=n_games, seed=seed)
-    model = builder(env, seed=seed, **kwargs)
+def training(algo: str, task: str, n_games: int, agent_steps: int, seed: int) -> float:
+    """Agent-steps/s of ``learn`` (rollout + update) with the method's packaged config (``zoo_configs/<algo>.yml``)."""
+    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed)
     start = time.perf_counter()
-    model.learn(agent_steps)
+    model.learn(agent_steps, callback=callbacks)
     elapsed = time.perf_counter() - start
     steps = model.num_timesteps
     env.close()
@@ -64,24 +51,17 @@ def main() -> None:
     parser.add_argument("--task", default="cn-sparse-n3")
     parser.add_argument("--n-games", type=int, default=16)
     parser.add_argument("--steps", type=int, default=100_000, help="agent-steps per measurement")
-    parser.add_argument("--algos", nargs="+", default=["random", "ppo", "saeir_ppo"])
-    parser.add_argument("--n-steps", type=int, default=25)
-    parser.add_argument("--n-epochs", type=int, default=10)
-    parser.add_argument("--batch-size", type=int, default=None, help="default: the whole rollout (one minibatch)")
+    parser.add_argument("--algos", nargs="+", default=["random", "ippo", "saeir_ppo"], help=f"random or {sorted(ALGOS)}")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     th.set_num_threads(1)
 
-    n_agents = make_multiagent_vec_env(args.task, n_games=1).n_agents
-    batch_size = args.batch_size or args.n_steps * args.n_games * n_agents
-    common = dict(n_steps=args.n_steps, n_epochs=args.n_epochs, batch_size=batch_size)
-    builders = algorithm_builders()
     results: dict[str, float] = {}
     for algo in args.algos:
         if algo == "random":
             results[algo] = random_stepping(args.task, args.n_games, args.steps, args.seed)
-        elif algo in builders:
-            results[algo] = training(builders[algo], args.task, args.n_games, args.steps, args.seed, **common)
+        elif algo in ALGOS:
+            results[algo] = training(algo, args.task, args.n_games, args.steps, args.seed)
         else:
             print(f"skipping {algo}: not available")
             continue
@@ -92,7 +72,7 @@ def main() -> None:
         for algo in trained[1:]:
             print(f"ratio {algo}/{reference}: {results[algo] / results[reference]:.2f}")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"task {args.task}, {args.n_games} games, {args.steps} agent-steps, {common}; peak RSS {peak_mb:.0f} MB")
+    print(f"task {args.task}, {args.n_games} games, {args.steps} agent-steps per method; peak RSS {peak_mb:.0f} MB")
 
 
 if __name__ == "__main__":

@@ -205,8 +205,9 @@ def test_env_without_n_agents_rejected():
 def test_batch_size_that_breaks_whole_games(env):
     with pytest.raises(ValueError, match=r"valid batch sizes: \[30, 60, 120\]"):
         SAEIR_PPO("MSHGPolicy", env, n_steps=20, batch_size=50)
-    with pytest.raises(ValueError, match="not a multiple of data_chunk_length"):
+    with pytest.raises(ValueError, match=r"valid batch sizes: \[150\].*not a multiple of data_chunk_length"):
         SAEIR_PPO("MSHGPolicy", env, n_steps=25, batch_size=30)
+    assert SAEIR_PPO("MSHGPolicy", env, n_steps=25, batch_size=150).n_minibatches == 1
     model = SAEIR_PPO("MSHGPolicy", env, n_steps=20, batch_size=60)
     assert model.n_minibatches == 2
     with pytest.raises(ValueError, match="n_minibatches"):

@@ -89,7 +89,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         self.value_norm_beta = value_norm_beta
         self.critic_gumbel_noise = critic_gumbel_noise
         if optimizer_kwargs is None:
-            optimizer_kwargs = {"eps": 1e-5}
+            optimizer_kwargs = {"eps": 1e-5, "foreach": True}
         kwargs.pop("net_arch", None)
         super().__init__(
             observation_space,

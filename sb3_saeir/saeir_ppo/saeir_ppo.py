@@ -20,17 +20,27 @@ from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, GroupedRecur
 from sb3_saeir.common.callbacks import episode_metric_means
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
+from sb3_saeir.intrinsic.elign import ElignCallback
+from sb3_saeir.intrinsic.rnd import RNDCallback
 from sb3_saeir.intrinsic.saeir import SAEIRCallback
 
 SelfSAEIR_PPO = TypeVar("SelfSAEIR_PPO", bound="SAEIR_PPO")
 
-INTRINSIC_REWARDS: dict[str, type[IntrinsicRewardCallback]] = {"saeir": SAEIRCallback}
+INTRINSIC_REWARDS: dict[str, type[IntrinsicRewardCallback]] = {
+    "saeir": SAEIRCallback,
+    "rnd": RNDCallback,
+    "elign": ElignCallback,
+}
 
 
 def valid_batch_sizes(n_steps: int, n_games: int, n_agents: int, data_chunk_length: int) -> list[int]:
-    """Batch sizes (agent-samples) that split a rollout into equal minibatches of whole (game, chunk) blocks."""
+    """Batch sizes (agent-samples) that split a rollout into equal minibatches of whole (game, chunk) blocks.
+
+    When ``n_steps`` is not a multiple of ``data_chunk_length``, blocks differ in length and only the whole rollout
+    (one minibatch) qualifies.
+    """
     if n_steps % data_chunk_length != 0:
-        return []
+        return [n_steps * n_games * n_agents]
     block = data_chunk_length * n_agents
     n_blocks = n_games * (n_steps // data_chunk_length)
     return [block * per_batch for per_batch in range(1, n_blocks + 1) if n_blocks % per_batch == 0]
@@ -84,9 +94,11 @@ class SAEIR_PPO(PPO):
     :param max_grad_norm: gradient-norm clip of each network (actor, each critic)
     :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None`` (blocks are split as evenly as possible)
     :param data_chunk_length: steps per recurrent training chunk (10)
-    :param intrinsic_reward: ``"saeir"`` (default) adds a :class:`~sb3_saeir.intrinsic.SAEIRCallback`; ``None`` for no
-        bonus (or pass your own :class:`~sb3_saeir.intrinsic.IntrinsicRewardCallback` to ``learn``)
-    :param intrinsic_coef: beta, scale of the intrinsic reward (0.1)
+    :param intrinsic_reward: ``"saeir"`` (default) adds a :class:`~sb3_saeir.intrinsic.SAEIRCallback`; ``"rnd"`` and
+        ``"elign"`` the baselines' bonuses; ``None`` for no bonus (or pass your own
+        :class:`~sb3_saeir.intrinsic.IntrinsicRewardCallback` to ``learn``)
+    :param intrinsic_coef: beta, scale of the intrinsic reward; ``None``: the bonus's default (SAEIR 0.1, RND 0.5,
+        Elign 1.0)
     :param intrinsic_kwargs: extra kwargs of the intrinsic-reward callback (e.g. ``variant="paper"``)
     :param normalize_values: ValueNorm per critic scale (spec §1.9)
     :param value_loss: ``"huber"`` (MAPPO) or ``"mse"``
@@ -129,7 +141,7 @@ class SAEIR_PPO(PPO):
         n_minibatches: int = 1,
         data_chunk_length: int = 10,
         intrinsic_reward: str | None = "saeir",
-        intrinsic_coef: float = 0.1,
+        intrinsic_coef: float | None = None,
         intrinsic_kwargs: dict[str, Any] | None = None,
         normalize_values: bool = True,
         value_loss: str = "huber",
@@ -267,12 +279,12 @@ class SAEIR_PPO(PPO):
             return self.n_minibatches
         valid = valid_batch_sizes(self.n_steps, n_games, self.n_agents, self.data_chunk_length)
         if self.batch_size not in valid:
-            hint = (
-                f"valid batch sizes: {valid}"
-                if valid
-                else f"n_steps={self.n_steps} is not a multiple of data_chunk_length={self.data_chunk_length}, so no "
-                "batch_size gives equal whole blocks"
-            )
+            hint = f"valid batch sizes: {valid}"
+            if self.n_steps % self.data_chunk_length != 0:
+                hint += (
+                    f" (n_steps={self.n_steps} is not a multiple of data_chunk_length={self.data_chunk_length}, so only "
+                    "the whole rollout splits into equal whole blocks)"
+                )
             raise ValueError(
                 f"batch_size={self.batch_size} cannot be formed from whole (game, {self.data_chunk_length}-step chunk) "
                 f"blocks of {self.n_agents} agents ({self.data_chunk_length * self.n_agents} agent-samples each) in a "
@@ -335,7 +347,8 @@ class SAEIR_PPO(PPO):
         if self.intrinsic_reward is not None:
             bonus_class = INTRINSIC_REWARDS[self.intrinsic_reward]
             if not any(isinstance(c, bonus_class) for c in callbacks):
-                callbacks.append(bonus_class(coef=self.intrinsic_coef, **self.intrinsic_kwargs))
+                coef = {} if self.intrinsic_coef is None else {"coef": self.intrinsic_coef}
+                callbacks.append(bonus_class(**coef, **self.intrinsic_kwargs))
         callbacks.sort(key=lambda c: not isinstance(c, IntrinsicRewardCallback))  # stable: keeps the user's order
         return super()._init_callback(callbacks, progress_bar)
 

@@ -1,0 +1,134 @@
+"""rl-zoo style YAML configs: one file per method in ``zoo_configs/``, one entry per task id.
+
+Entry keys (rl-zoo's vocabulary): ``n_timesteps`` (agent-steps), ``n_envs`` (number of *games*; the vec env has
+``n_envs * n_agents`` slots), ``policy``, ``policy_kwargs`` (a dict or a string evaluated with ``nn`` in scope, as
+rl-zoo does), ``env_kwargs``, ``callback`` (``"module.Class"`` or ``{"module.Class": {kwargs}}`` or a list of these);
+every other key is a constructor argument of the method's algorithm class.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from pathlib import Path
+from typing import Any
+
+import yaml
+from stable_baselines3 import PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from torch import nn
+
+from sb3_saeir.common.vec_env import MultiAgentVecEnv, make_multiagent_vec_env
+from sb3_saeir.mappo import MAPPO
+from sb3_saeir.saeir_ppo import SAEIR_PPO
+
+# Method name -> algorithm class. Baselines and ablations share MAPPO's machinery; their YAML says what differs.
+ALGOS: dict[str, type[BaseAlgorithm]] = {
+    "saeir_ppo": SAEIR_PPO,
+    "mappo": MAPPO,
+    "sn_mappo": MAPPO,
+    "rnd": MAPPO,
+    "elign": MAPPO,
+    "mshg_only": MAPPO,
+    "sae_only": MAPPO,
+    "ippo": PPO,
+}
+
+# Keys consumed here rather than passed to the algorithm.
+_SPECIAL_KEYS = ("n_timesteps", "n_envs", "env_kwargs", "policy", "policy_kwargs", "callback")
+
+
+def config_dir() -> Path:
+    """Folder of the packaged configs (``zoo_configs/`` next to the package, or inside it when installed)."""
+    for candidate in (Path(__file__).parent / "zoo_configs", Path(__file__).parent.parent / "zoo_configs"):
+        if candidate.is_dir():
+            return candidate
+    raise FileNotFoundError("zoo_configs/ not found next to the sb3_saeir package.")
+
+
+def config_path(algo: str) -> Path:
+    """Path of the packaged config of a method."""
+    if algo not in ALGOS:
+        raise KeyError(f"Unknown algorithm {algo!r}. Valid choices: {', '.join(sorted(ALGOS))}.")
+    return config_dir() / f"{algo}.yml"
+
+
+def load_hyperparams(algo: str, task: str, conf_file: str | os.PathLike | None = None) -> dict[str, Any]:
+    """The entry of ``task`` in a config file (default: the packaged ``zoo_configs/<algo>.yml``).
+
+    :raises KeyError: when the file has no entry for the task (the message lists the tasks it has)
+    """
+    path = Path(conf_file) if conf_file is not None else config_path(algo)
+    with open(path) as file:
+        entries = yaml.safe_load(file) or {}
+    if task not in entries:
+        raise KeyError(f"{path} has no entry for task {task!r}. Entries: {', '.join(sorted(entries))}.")
+    return dict(entries[task])
+
+
+def _resolve(dotted: str) -> Any:
+    module_name, _, name = dotted.rpartition(".")
+    return getattr(importlib.import_module(module_name), name)
+
+
+def build_callbacks(spec: Any) -> list[BaseCallback]:
+    """Instantiate rl-zoo style callback entries."""
+    if spec is None:
+        return []
+    callbacks = []
+    for entry in spec if isinstance(spec, list) else [spec]:
+        if isinstance(entry, str):
+            callbacks.append(_resolve(entry)())
+        else:
+            ((name, kwargs),) = entry.items()
+            callbacks.append(_resolve(name)(**(kwargs or {})))
+    return callbacks
+
+
+def parse_policy_kwargs(policy_kwargs: Any) -> dict[str, Any]:
+    """A dict, or a string evaluated with ``nn`` (torch.nn) in scope, as rl-zoo does."""
+    if policy_kwargs is None:
+        return {}
+    if isinstance(policy_kwargs, str):
+        return dict(eval(policy_kwargs, {"nn": nn, "dict": dict}))
+    return dict(policy_kwargs)
+
+
+def build_model(
+    algo: str,
+    task: str,
+    hyperparams: dict[str, Any] | None = None,
+    n_games: int | None = None,
+    seed: int | None = None,
+    env: MultiAgentVecEnv | None = None,
+    **model_kwargs: Any,
+) -> tuple[BaseAlgorithm, MultiAgentVecEnv, list[BaseCallback], dict[str, Any]]:
+    """Build a method's model on a task from its config entry.
+
+    :param algo: method name (a key of :data:`ALGOS`)
+    :param task: task id
+    :param hyperparams: the config entry (default: the packaged one)
+    :param n_games: override ``n_envs`` (number of games)
+    :param seed: seed of model and env
+    :param env: use this env instead of creating one
+    :param model_kwargs: extra algorithm arguments (override the config; e.g. ``verbose``, ``tensorboard_log``)
+    :return: model, env, the config's callbacks (pass them to ``learn``), and the resolved hyperparameters
+    """
+    params = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
+    resolved = dict(params)
+    games = int(n_games if n_games is not None else params.get("n_envs", 8))
+    resolved["n_envs"] = games
+    if env is None:
+        env = make_multiagent_vec_env(task, n_games=games, seed=seed, **(params.get("env_kwargs") or {}))
+    algo_kwargs = {key: value for key, value in params.items() if key not in _SPECIAL_KEYS}
+    config_games = params.get("n_envs", games)
+    if "batch_size" in algo_kwargs and algo_kwargs["batch_size"] == params.get("n_steps", 0) * config_games * env.n_agents:
+        # the config's batch is its whole rollout: keep it the whole rollout with the game count used here
+        algo_kwargs["batch_size"] = params["n_steps"] * env.num_envs
+        resolved["batch_size"] = algo_kwargs["batch_size"]
+    algo_kwargs.update(model_kwargs)
+    policy = params.get("policy", "MlpPolicy")
+    policy_kwargs = parse_policy_kwargs(params.get("policy_kwargs"))
+    model = ALGOS[algo](policy, env, policy_kwargs=policy_kwargs, seed=seed, **algo_kwargs)
+    return model, env, build_callbacks(params.get("callback")), resolved

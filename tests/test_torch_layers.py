@@ -179,8 +179,13 @@ def test_single_output_fc_heads_are_constant():
     x = th.randn(50, 128, requires_grad=True)
     out = block(x)
     th.testing.assert_close(out, th.full((50, 1), 0.37))
-    out.sum().backward()
+    # the shortcut equals the full Linear -> ReLU -> LayerNorm path, which passes exactly zero gradient to its input
+    # and to the Linear layer, so skipping that path changes neither values nor parameter updates
+    full = nn.Sequential.forward(block, x)
+    th.testing.assert_close(full, out)
+    full.sum().backward()
     assert th.all(x.grad == 0)
+    assert th.all(block[0].weight.grad == 0) and th.all(block[0].bias.grad == 0)
     critic = _small_critic("team")
     for head in (critic.attention, critic.edge_factor, critic.edge_type):
         outputs = head(th.randn(20, head[0].in_features) * 5.0)

@@ -49,6 +49,19 @@ class FCBlock(nn.Sequential):
 
     def __init__(self, in_dim: int, out_dim: int) -> None:
         super().__init__(nn.Linear(in_dim, out_dim), nn.ReLU(), nn.LayerNorm(out_dim))
+        self.out_dim = out_dim
+
+    @property
+    def is_constant(self) -> bool:
+        """True for a 1-output block: its output is the LayerNorm bias whatever the input."""
+        return self.out_dim == 1
+
+    def forward(self, x: th.Tensor) -> th.Tensor:
+        if self.is_constant:
+            # LayerNorm over one feature maps every input to its bias, so Linear and ReLU cannot change the output and
+            # receive exactly zero gradient: skipping them gives the same values and the same parameter updates.
+            return self[2].bias.expand(*x.shape[:-1], 1)
+        return super().forward(x)
 
 
 class MLPEncoder(nn.Sequential):
@@ -305,14 +318,17 @@ class ScaleCritic(nn.Module):
         x = self.node2edge_start(nodes)  # (B, N, H)
         edges_init = incidence @ x  # (B, E, H)
         n_edges, n_agents = incidence.shape[-2:]
-        pairs = th.cat(
-            [
-                x.unsqueeze(-3).expand(-1, n_edges, -1, -1),  # (B, E, N, H): x_i
-                edges_init.unsqueeze(-2).expand(-1, -1, n_agents, -1),  # (B, E, N, H): u_e
-            ],
-            dim=-1,
-        )  # (B, E, N, 2H)
-        logits = self.attention(pairs).squeeze(-1)  # (B, E, N)
+        if self.attention.is_constant:  # the released 1-output head (spec §1.8a): same logit for every pair
+            logits = self.attention[2].bias.expand(x.shape[0], n_edges, n_agents)  # (B, E, N)
+        else:
+            pairs = th.cat(
+                [
+                    x.unsqueeze(-3).expand(-1, n_edges, -1, -1),  # (B, E, N, H): x_i
+                    edges_init.unsqueeze(-2).expand(-1, -1, n_agents, -1),  # (B, E, N, H): u_e
+                ],
+                dim=-1,
+            )  # (B, E, N, 2H)
+            logits = self.attention(pairs).squeeze(-1)  # (B, E, N)
         edges = self.init_fc(node_to_edge(x, incidence, logits))  # (B, E, H)
         type_probs = gumbel_softmax(self.edge_type(edges), self.gumbel_tau, noise=gumbel_noise)  # (B, E, T_K)
         return th.sigmoid(self.edge_factor(edges)) * type_probs  # (B, E, 1) * (B, E, T_K)

@@ -18,7 +18,7 @@ def test_every_method_has_a_config():
 
 @pytest.mark.parametrize("algo, task", CONFIG_ENTRIES)
 def test_config_entry_builds(algo, task):
-    model, env, callbacks, resolved = build_model(algo, task, n_games=2, seed=0)
+    model, env, _, resolved = build_model(algo, task, n_games=2, seed=0)
     params = load_hyperparams(algo, task)
     assert env.n_agents == params["env_kwargs"]["N"]
     assert model.learning_rate == params["learning_rate"]

@@ -6,6 +6,8 @@ cd "$(dirname "$0")/.."
 bash scripts/install.sh tests,zoo,plots || { echo "install failed"; exit 1; }
 echo "== ruff"
 .venv/bin/ruff check sb3_saeir tests examples benchmarks || { echo "lint errors (ruff check) - fix them or run 'make format'"; exit 1; }
+echo "== mypy"
+.venv/bin/mypy sb3_saeir || { echo "type errors (mypy) - see above"; exit 1; }
 echo "== pytest"
 .venv/bin/python -m pytest -n 2 -q "$@"
 status=$?

@@ -12,7 +12,13 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.distributions import Distribution
+from stable_baselines3.common.distributions import (
+    BernoulliDistribution,
+    CategoricalDistribution,
+    DiagGaussianDistribution,
+    Distribution,
+    MultiCategoricalDistribution,
+)
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
@@ -123,19 +129,12 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
 
     def _build(self, lr_schedule: Schedule) -> None:
         self.actor = ActorNetwork(self.obs_dim, self.hidden_size, self.activation_fn, recurrent=self.recurrent_actor)
-        self.action_net, self.log_std = self._build_action_net(self.hidden_size)
+        self.action_net, self.log_std = self._build_action_net(self.hidden_size)  # type: ignore[assignment]
         self.critics = self._build_critics()
         self.value_norms = nn.ModuleDict({name: ValueNorm(beta=self.value_norm_beta) for name in self.critics})
         self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)  # type: ignore[call-arg]
 
-    def _build_action_net(self, latent_dim: int) -> tuple[nn.Module, nn.Parameter | None]:
-        from stable_baselines3.common.distributions import (
-            BernoulliDistribution,
-            CategoricalDistribution,
-            DiagGaussianDistribution,
-            MultiCategoricalDistribution,
-        )
-
+    def _build_action_net(self, latent_dim: int) -> tuple[nn.Linear, nn.Parameter | None]:
         log_std = None
         if isinstance(self.action_dist, DiagGaussianDistribution):
             action_net, log_std = self.action_dist.proba_distribution_net(latent_dim, log_std_init=self.log_std_init)
@@ -143,6 +142,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
             action_net = self.action_dist.proba_distribution_net(latent_dim)
         else:
             raise NotImplementedError(f"Unsupported action distribution {type(self.action_dist).__name__}.")
+        assert isinstance(action_net, nn.Linear)
         nn.init.orthogonal_(action_net.weight, gain=0.01)
         nn.init.zeros_(action_net.bias)
         return action_net, log_std
@@ -186,7 +186,12 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         """Map normalised values ``(..., K)`` to return space with each scale's ValueNorm."""
         if not self.normalize_values:
             return values
-        return th.stack([self.value_norms[name].denormalize(values[..., k]) for k, name in enumerate(self.scales)], dim=-1)
+        return th.stack([self._value_norm(name).denormalize(values[..., k]) for k, name in enumerate(self.scales)], dim=-1)
+
+    def _value_norm(self, scale: str) -> ValueNorm:
+        value_norm = self.value_norms[scale]
+        assert isinstance(value_norm, ValueNorm)
+        return value_norm
 
     def denormalize_values_numpy(self, values: np.ndarray) -> np.ndarray:
         """NumPy version of :meth:`denormalize_values` (used by the rollout buffer's GAE)."""
@@ -341,7 +346,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
                 starts = th.as_tensor(np.asarray(episode_start, dtype=np.float32), device=self.device).reshape(n_agents)
             latent_pi, new_hidden = self._actor_latent(obs_tensor.unsqueeze(0), hidden, starts.unsqueeze(0))
             actions = self._distribution(latent_pi.squeeze(0)).get_actions(deterministic=deterministic)
-        actions_np = actions.cpu().numpy().reshape((-1, *self.action_space.shape))  # type: ignore[misc]
+        actions_np = actions.cpu().numpy().reshape((-1, *self.action_space.shape))  # type: ignore[misc, arg-type]
         if isinstance(self.action_space, spaces.Box):
             actions_np = np.clip(actions_np, self.action_space.low, self.action_space.high)
         new_state = new_hidden.cpu().numpy() if new_hidden is not None else None

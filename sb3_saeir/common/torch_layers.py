@@ -51,6 +51,12 @@ class FCBlock(nn.Sequential):
         super().__init__(nn.Linear(in_dim, out_dim), nn.ReLU(), nn.LayerNorm(out_dim))
         self.out_dim = out_dim
 
+    def constant_output(self, *batch_shape: int) -> th.Tensor:
+        """The output of a 1-output block for inputs of batch shape ``batch_shape``: the LayerNorm bias, broadcast."""
+        norm = self[2]
+        assert isinstance(norm, nn.LayerNorm) and norm.bias is not None
+        return norm.bias.expand(*batch_shape, 1)
+
     @property
     def is_constant(self) -> bool:
         """True for a 1-output block: its output is the LayerNorm bias whatever the input."""
@@ -60,7 +66,7 @@ class FCBlock(nn.Sequential):
         if self.is_constant:
             # LayerNorm over one feature maps every input to its bias, so Linear and ReLU cannot change the output and
             # receive exactly zero gradient: skipping them gives the same values and the same parameter updates.
-            return self[2].bias.expand(*x.shape[:-1], 1)
+            return self.constant_output(*x.shape[:-1])
         return super().forward(x)
 
 
@@ -319,7 +325,7 @@ class ScaleCritic(nn.Module):
         edges_init = incidence @ x  # (B, E, H)
         n_edges, n_agents = incidence.shape[-2:]
         if self.attention.is_constant:  # the released 1-output head (spec §1.8a): same logit for every pair
-            logits = self.attention[2].bias.expand(x.shape[0], n_edges, n_agents)  # (B, E, N)
+            logits = self.attention.constant_output(x.shape[0], n_edges, n_agents).squeeze(-1)  # (B, E, N)
         else:
             pairs = th.cat(
                 [

@@ -291,7 +291,7 @@ class MultiAgentVecEnv(VecEnv):
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """Attribute of the game each slot belongs to (``render_mode``, ``metadata``, ``possible_agents`` and
         ``n_agents`` also work with subprocesses)."""
-        n_slots = len(self._get_indices(indices))
+        n_slots = len(list(self._get_indices(indices)))
         if attr_name == "render_mode":
             return [self._probe_render_mode] * n_slots
         if attr_name in ("metadata", "possible_agents"):
@@ -321,7 +321,7 @@ class MultiAgentVecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         """Games are PettingZoo envs, never gymnasium-wrapped: all ``False``."""
-        return [False] * len(self._get_indices(indices))
+        return [False] * len(list(self._get_indices(indices)))
 
     def get_state(self) -> np.ndarray:
         """Global state of every game, ``(n_games, *state_shape)`` (in-process games only)."""

@@ -50,7 +50,7 @@ class IntrinsicRewardCallback(BaseCallback, ABC):
         return True
 
     def _on_rollout_end(self) -> None:
-        buffer = self.model.rollout_buffer
+        buffer = getattr(self.model, "rollout_buffer", None)
         if not isinstance(buffer, GroupedRecurrentRolloutBuffer):
             raise TypeError(
                 f"{type(self).__name__} needs the GroupedRecurrentRolloutBuffer of SAEIR_PPO / MAPPO, got "

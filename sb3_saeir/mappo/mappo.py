@@ -35,8 +35,8 @@ class MAPPO(SAEIR_PPO):
         "MSHGPolicy": MSHGPolicy,
     }
 
-    def __init__(self, policy: Any, env: Any, *args: Any, intrinsic_reward: str | None = None, **kwargs: Any) -> None:
-        super().__init__(policy, env, *args, intrinsic_reward=intrinsic_reward, **kwargs)
+    def __init__(self, policy: Any, env: Any, intrinsic_reward: str | None = None, **kwargs: Any) -> None:
+        super().__init__(policy, env, intrinsic_reward=intrinsic_reward, **kwargs)
 
-    def learn(self, *args: Any, tb_log_name: str = "MAPPO", **kwargs: Any) -> MAPPO:  # type: ignore[override]
-        return super().learn(*args, tb_log_name=tb_log_name, **kwargs)
+    def learn(self, total_timesteps: int, tb_log_name: str = "MAPPO", **kwargs: Any) -> MAPPO:  # type: ignore[override]
+        return super().learn(total_timesteps, tb_log_name=tb_log_name, **kwargs)

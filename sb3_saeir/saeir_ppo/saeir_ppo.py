@@ -348,7 +348,7 @@ class SAEIR_PPO(PPO):
             bonus_class = INTRINSIC_REWARDS[self.intrinsic_reward]
             if not any(isinstance(c, bonus_class) for c in callbacks):
                 coef = {} if self.intrinsic_coef is None else {"coef": self.intrinsic_coef}
-                callbacks.append(bonus_class(**coef, **self.intrinsic_kwargs))
+                callbacks.append(bonus_class(**coef, **self.intrinsic_kwargs))  # type: ignore[arg-type]
         callbacks.sort(key=lambda c: not isinstance(c, IntrinsicRewardCallback))  # stable: keeps the user's order
         return super()._init_callback(callbacks, progress_bar)
 
@@ -423,8 +423,8 @@ class SAEIR_PPO(PPO):
             obs = th.as_tensor(terminal_obs, dtype=th.float32, device=self.device)
             critic_states = states.critic[:, games]  # (K, g, N, H)
             sub_states = MultiAgentStates(actor=states.actor[: len(games) * n_agents], critic=critic_states)
-            values = self.policy.predict_values(obs, sub_states)  # (len(games) * N, K)
-            values = self.policy.denormalize_values(values).cpu().numpy()
+            normalized = self.policy.predict_values(obs, sub_states)  # (len(games) * N, K)
+            values = self.policy.denormalize_values(normalized).cpu().numpy()
         slots = [g * n_agents + a for g in games for a in range(n_agents)]
         buffer.bootstrap_rewards[buffer.pos - 1, slots] += self.gamma * values
 
@@ -492,7 +492,7 @@ class SAEIR_PPO(PPO):
         for k, scale in enumerate(self.policy.scales):
             returns = samples.returns[..., k]
             if self.normalize_values:
-                value_norm = self.policy.value_norms[scale]
+                value_norm = self.policy._value_norm(scale)
                 value_norm.update(returns[samples.mask])
                 returns = value_norm.normalize(returns)
             value_losses.append(

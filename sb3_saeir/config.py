@@ -17,9 +17,10 @@ import yaml
 from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
-from sb3_saeir.common.vec_env import MultiAgentVecEnv, make_multiagent_vec_env
+from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
 
@@ -101,9 +102,9 @@ def build_model(
     hyperparams: dict[str, Any] | None = None,
     n_games: int | None = None,
     seed: int | None = None,
-    env: MultiAgentVecEnv | None = None,
+    env: VecEnv | None = None,
     **model_kwargs: Any,
-) -> tuple[BaseAlgorithm, MultiAgentVecEnv, list[BaseCallback], dict[str, Any]]:
+) -> tuple[BaseAlgorithm, VecEnv, list[BaseCallback], dict[str, Any]]:
     """Build a method's model on a task from its config entry.
 
     :param algo: method name (a key of :data:`ALGOS`)
@@ -111,7 +112,7 @@ def build_model(
     :param hyperparams: the config entry (default: the packaged one)
     :param n_games: override ``n_envs`` (number of games)
     :param seed: seed of model and env
-    :param env: use this env instead of creating one
+    :param env: use this multi-agent vec env (possibly wrapped) instead of creating one
     :param model_kwargs: extra algorithm arguments (override the config; e.g. ``verbose``, ``tensorboard_log``)
     :return: model, env, the config's callbacks (pass them to ``learn``), and the resolved hyperparameters
     """
@@ -123,7 +124,8 @@ def build_model(
         env = make_multiagent_vec_env(task, n_games=games, seed=seed, **(params.get("env_kwargs") or {}))
     algo_kwargs = {key: value for key, value in params.items() if key not in _SPECIAL_KEYS}
     config_games = params.get("n_envs", games)
-    if "batch_size" in algo_kwargs and algo_kwargs["batch_size"] == params.get("n_steps", 0) * config_games * env.n_agents:
+    n_agents = env.num_envs // games
+    if "batch_size" in algo_kwargs and algo_kwargs["batch_size"] == params.get("n_steps", 0) * config_games * n_agents:
         # the config's batch is its whole rollout: keep it the whole rollout with the game count used here
         algo_kwargs["batch_size"] = params["n_steps"] * env.num_envs
         resolved["batch_size"] = algo_kwargs["batch_size"]

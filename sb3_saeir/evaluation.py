@@ -2,12 +2,26 @@
 
 from __future__ import annotations
 
-from typing import Any
+import os
+from typing import Any, Literal, overload
 
 import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback, EventCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.vec_env import is_multiagent_vec_env
+
+
+@overload
+def evaluate_multiagent_policy(
+    model: Any, env: VecEnv, n_episodes: int = ..., deterministic: bool = ..., return_episodes: Literal[False] = ...
+) -> dict[str, float]: ...
+
+
+@overload
+def evaluate_multiagent_policy(
+    model: Any, env: VecEnv, n_episodes: int, deterministic: bool, return_episodes: Literal[True]
+) -> tuple[dict[str, float], list[dict[str, float]]]: ...
 
 
 def evaluate_multiagent_policy(
@@ -66,3 +80,103 @@ def summarise_episodes(episodes: list[dict[str, float]]) -> dict[str, float]:
         summary[f"{name}_mean"] = float(values.mean())
         summary[f"{name}_std"] = float(values.std())
     return summary
+
+
+def metric_name(key: str) -> str:
+    """Logger name of an episode quantity: ``success`` -> ``success_rate``, others unchanged."""
+    return "success_rate" if key == "success" else key
+
+
+class MultiAgentEvalCallback(EventCallback):
+    """Evaluate every ``eval_freq`` agent-steps on a multi-agent vec env; log under ``eval/``; keep the best model.
+
+    Like SB3's ``EvalCallback``, but it counts games (not agents) as episodes, reports the task's metrics
+    (``eval/coverage_rate``, ``eval/success_rate``, ...) and picks the best model by the task's main metric
+    (coverage rate for navigation, success rate for football; team return otherwise). ``evaluations.npz`` holds
+    ``timesteps``, ``results`` (team returns), ``ep_lengths`` and one array per metric, each ``(n_evaluations, n_episodes)``.
+
+    :param eval_env: a :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`
+    :param n_eval_episodes: game episodes per evaluation
+    :param eval_freq: evaluate every this many agent-steps (``model.num_timesteps``)
+    :param main_metric: episode key to maximise for the best model (``"r"`` = team return)
+    :param log_path: folder for ``evaluations.npz`` (``None``: not saved)
+    :param best_model_save_path: folder for ``best_model.zip`` (``None``: not saved)
+    :param deterministic: greedy actions
+    :param callback_on_new_best: callback run when a new best model is found
+    :param verbose: verbosity
+    """
+
+    def __init__(
+        self,
+        eval_env: VecEnv,
+        n_eval_episodes: int = 10,
+        eval_freq: int = 10_000,
+        main_metric: str = "r",
+        log_path: str | None = None,
+        best_model_save_path: str | None = None,
+        deterministic: bool = True,
+        callback_on_new_best: BaseCallback | None = None,
+        verbose: int = 1,
+    ) -> None:
+        super().__init__(callback_on_new_best, verbose=verbose)
+        if not is_multiagent_vec_env(eval_env):
+            raise TypeError("MultiAgentEvalCallback needs an eval env from sb3_saeir.make_multiagent_vec_env.")
+        self.eval_env = eval_env
+        self.n_eval_episodes = n_eval_episodes
+        self.eval_freq = eval_freq
+        self.main_metric = main_metric
+        self.log_path = log_path
+        self.best_model_save_path = best_model_save_path
+        self.deterministic = deterministic
+        self.best_score = -np.inf
+        self.last_eval_timestep = 0
+        self.history: dict[str, list[list[float]]] = {}
+        self.timesteps: list[int] = []
+
+    def _init_callback(self) -> None:
+        for path in (self.log_path, self.best_model_save_path):
+            if path is not None:
+                os.makedirs(path, exist_ok=True)
+        self.last_eval_timestep = self.num_timesteps
+
+    def _on_step(self) -> bool:
+        if self.eval_freq > 0 and self.num_timesteps - self.last_eval_timestep >= self.eval_freq:
+            self.last_eval_timestep = self.num_timesteps
+            return self.evaluate()
+        return True
+
+    def evaluate(self) -> bool:
+        """Run one evaluation now; returns whether training should continue."""
+        summary, episodes = evaluate_multiagent_policy(
+            self.model, self.eval_env, self.n_eval_episodes, self.deterministic, True
+        )
+        self.timesteps.append(self.num_timesteps)
+        for key in sorted({key for episode in episodes for key in episode}):
+            self.history.setdefault(key, []).append([episode.get(key, np.nan) for episode in episodes])
+        self.logger.record("eval/mean_reward", summary["ep_rew_mean"])
+        self.logger.record("eval/mean_ep_length", summary["ep_len_mean"])
+        for key in self.history:
+            if key not in ("r", "l"):
+                self.logger.record(f"eval/{metric_name(key)}", summary[f"{key}_mean"])
+        self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
+        self.logger.dump(self.num_timesteps)
+        if self.log_path is not None:
+            self._save_evaluations()
+        score = summary["ep_rew_mean"] if self.main_metric == "r" else summary.get(f"{self.main_metric}_mean", -np.inf)
+        if self.verbose >= 1:
+            print(f"Eval num_timesteps={self.num_timesteps}, {self.main_metric}={score:.3f} over {len(episodes)} games")
+        if score > self.best_score:
+            self.best_score = score
+            if self.best_model_save_path is not None:
+                self.model.save(os.path.join(self.best_model_save_path, "best_model"))
+            if self.callback is not None:
+                return self.callback.on_step()
+        return True
+
+    def _save_evaluations(self) -> None:
+        assert self.log_path is not None
+        arrays = {"timesteps": np.array(self.timesteps)}
+        renamed = {"r": "results", "l": "ep_lengths"}
+        for key, values in self.history.items():
+            arrays[renamed.get(key, key)] = np.array(values)
+        np.savez(os.path.join(self.log_path, "evaluations.npz"), **arrays)  # type: ignore[arg-type]

@@ -12,6 +12,7 @@ reset together. Episode statistics are recorded once per game (not once per agen
 
 from __future__ import annotations
 
+import collections
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -22,7 +23,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo.utils.env import AECEnv, ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
 ParallelEnvFactory = Callable[..., ParallelEnv]
 
@@ -389,3 +390,59 @@ def joint_observation_space(observation_space: spaces.Box, n_agents: int) -> spa
     low = np.tile(observation_space.low.reshape(-1), n_agents)
     high = np.tile(observation_space.high.reshape(-1), n_agents)
     return spaces.Box(low=low, high=high, dtype=observation_space.dtype)  # type: ignore[arg-type]
+
+
+class MultiAgentVecMonitor(VecEnvWrapper):
+    """Per-game episode records of a :class:`MultiAgentVecEnv`, optionally written as a monitor CSV.
+
+    The multi-agent vec env puts one ``episode`` dict (team return ``r``, game steps ``l``, task metrics) into the info
+    of a game's first slot when the game ends; this wrapper keeps the last 10,000 of them in :attr:`episodes` and
+    writes each as a row of ``<filename>.monitor.csv`` (SB3's monitor format, readable by
+    ``stable_baselines3.common.monitor.load_results`` and rl-zoo3's plot scripts; ``t`` is counted from this wrapper's
+    creation, the header's ``t_start``). Unlike SB3's ``VecMonitor`` it counts games, not agents. Attribute access
+    falls through to the wrapped env (``n_agents``, ``n_games``, ...).
+
+    :param venv: a multi-agent vec env
+    :param filename: path prefix of the CSV (``"<dir>/games"`` -> ``<dir>/games.monitor.csv``); ``None``: no file
+    :param env_id: written in the CSV header
+    """
+
+    def __init__(self, venv: VecEnv, filename: str | None = None, env_id: str = "games") -> None:
+        super().__init__(venv)
+        self.filename = filename
+        self.env_id = env_id
+        self.t_start = time.time()
+        self.results_writer: Any = None
+        self.episodes: collections.deque[dict[str, Any]] = collections.deque(maxlen=10_000)
+        self.n_finished_games = 0
+
+    def reset(self) -> VecEnvObs:
+        return self.venv.reset()
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        for info in infos:
+            episode = info.get("episode")
+            if episode is not None:
+                self._record(dict(episode))
+        return obs, rewards, dones, infos
+
+    def _record(self, episode: dict[str, Any]) -> None:
+        from stable_baselines3.common.monitor import ResultsWriter
+
+        row = {"r": episode.pop("r"), "l": episode.pop("l"), "t": round(time.time() - self.t_start, 6)}
+        episode.pop("t", None)
+        row.update(episode)
+        self.episodes.append(row)
+        self.n_finished_games += 1
+        if self.filename is None:
+            return
+        if self.results_writer is None:
+            header: dict[str, float | str] = {"t_start": self.t_start, "env_id": self.env_id}
+            self.results_writer = ResultsWriter(self.filename, header=header, extra_keys=tuple(episode))
+        self.results_writer.write_row(row)
+
+    def close(self) -> None:
+        if self.results_writer is not None:
+            self.results_writer.close()
+        super().close()

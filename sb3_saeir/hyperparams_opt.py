@@ -1,0 +1,163 @@
+"""Hyperparameter search with Optuna (rl-zoo's conventions): search spaces and the ``--optimize`` loop.
+
+Several workers, on one machine or many, share a study through one storage URL::
+
+    python -m sb3_saeir.train --algo saeir_ppo --task cn-sparse-n3 --optimize --n-trials 20 -n 200000 \\
+        --storage postgresql://user:password@host/db --study-name saeir_cn3
+
+Without ``--storage`` the study lives in a SQLite file in the log folder. Each trial trains with the sampled
+hyperparameters, evaluates ``--n-evaluations`` times (intermediate values feed the pruner) and returns the task's main
+metric (coverage rate for navigation, success rate for football). Trials record their worker (``host:pid``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+from pathlib import Path
+from typing import Any
+
+import optuna
+from stable_baselines3.common.callbacks import BaseCallback
+
+from sb3_saeir.common.vec_env import make_multiagent_vec_env
+from sb3_saeir.config import build_model, parse_policy_kwargs
+from sb3_saeir.envs import get_task_spec
+from sb3_saeir.evaluation import evaluate_multiagent_policy
+
+BONUS_METHODS = ("saeir_ppo", "rnd", "elign", "sae_only")
+
+
+def sample_ppo_params(trial: optuna.Trial) -> dict[str, Any]:
+    """Search space shared by every method: learning rate, epochs, entropy coefficient, recurrent chunk length."""
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 1e-4, 2e-3, log=True),
+        "n_epochs": trial.suggest_categorical("n_epochs", [5, 10, 15]),
+        "ent_coef": trial.suggest_float("ent_coef", 1e-3, 5e-2, log=True),
+        "data_chunk_length": trial.suggest_categorical("data_chunk_length", [5, 10]),
+    }
+
+
+def sample_saeir_ppo_params(trial: optuna.Trial, n_agents: int) -> dict[str, Any]:
+    """SAEIR_PPO: the shared space plus beta, the group size k and the number of edge types."""
+    params = sample_ppo_params(trial)
+    params["intrinsic_coef"] = trial.suggest_float("intrinsic_coef", 1e-2, 1.0, log=True)
+    params["policy_kwargs"] = {
+        "group_size": trial.suggest_int("group_size", 2, max(2, n_agents)),
+        "n_edge_types": trial.suggest_int("n_edge_types", 1, 4),
+    }
+    return params
+
+
+def sample_params(trial: optuna.Trial, algo: str, n_agents: int) -> dict[str, Any]:
+    """Hyperparameters of one trial for a method."""
+    if algo in ("saeir_ppo", "mshg_only"):
+        params = sample_saeir_ppo_params(trial, n_agents)
+        if algo == "mshg_only":
+            params.pop("intrinsic_coef")
+        return params
+    if algo == "ippo":
+        return {
+            "learning_rate": trial.suggest_float("learning_rate", 1e-4, 2e-3, log=True),
+            "n_epochs": trial.suggest_categorical("n_epochs", [5, 10, 15]),
+            "ent_coef": trial.suggest_float("ent_coef", 1e-3, 5e-2, log=True),
+        }
+    params = sample_ppo_params(trial)
+    if algo in BONUS_METHODS:
+        params["intrinsic_coef"] = trial.suggest_float("intrinsic_coef", 1e-2, 2.0, log=True)
+    return params
+
+
+def merge_params(hyperparams: dict[str, Any], sampled: dict[str, Any]) -> dict[str, Any]:
+    """Config entry updated with sampled values (``policy_kwargs`` merged key by key)."""
+    merged = dict(hyperparams)
+    for key, value in sampled.items():
+        if key == "policy_kwargs":
+            merged["policy_kwargs"] = {**parse_policy_kwargs(hyperparams.get("policy_kwargs")), **value}
+        else:
+            merged[key] = value
+    return merged
+
+
+class TrialEvalCallback(BaseCallback):
+    """Evaluate every ``eval_freq`` agent-steps, report to Optuna, stop the run when the pruner says so."""
+
+    def __init__(self, trial: optuna.Trial, eval_env: Any, n_episodes: int, eval_freq: int, metric: str) -> None:
+        super().__init__()
+        self.trial, self.eval_env, self.n_episodes, self.eval_freq, self.metric = (
+            trial,
+            eval_env,
+            n_episodes,
+            eval_freq,
+            metric,
+        )
+        self.last = 0
+        self.n_evaluations = 0
+        self.last_score = float("-inf")
+        self.is_pruned = False
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self.last < self.eval_freq:
+            return True
+        self.last = self.num_timesteps
+        self.last_score = score(evaluate_multiagent_policy(self.model, self.eval_env, self.n_episodes), self.metric)
+        self.n_evaluations += 1
+        self.trial.report(self.last_score, self.n_evaluations)
+        if self.trial.should_prune():
+            self.is_pruned = True
+            return False
+        return True
+
+
+def score(summary: dict[str, float], metric: str) -> float:
+    """The value of the task's main metric in an evaluation summary."""
+    return summary["ep_rew_mean"] if metric == "r" else summary[f"{metric}_mean"]
+
+
+def objective_factory(args: argparse.Namespace, hyperparams: dict[str, Any]) -> Any:
+    metric = get_task_spec(args.task).main_metric
+    env_kwargs = dict(hyperparams.get("env_kwargs") or {})
+    n_agents = make_multiagent_vec_env(args.task, n_games=1, **env_kwargs).n_agents
+    n_timesteps = int(hyperparams.get("n_timesteps", 1e5))
+
+    def objective(trial: optuna.Trial) -> float:
+        trial.set_user_attr("worker", f"{socket.gethostname()}:{os.getpid()}")
+        params = merge_params(hyperparams, sample_params(trial, args.algo, n_agents))
+        model, env, callbacks, _ = build_model(args.algo, args.task, params, seed=args.seed + trial.number, verbose=0)
+        eval_env = make_multiagent_vec_env(args.task, n_games=min(args.eval_episodes, 10), seed=10_000, **env_kwargs)
+        evaluator = TrialEvalCallback(trial, eval_env, args.eval_episodes, max(1, n_timesteps // args.n_evaluations), metric)
+        try:
+            model.learn(n_timesteps, callback=[*callbacks, evaluator])
+            final = score(evaluate_multiagent_policy(model, eval_env, args.eval_episodes), metric)
+        finally:
+            env.close()
+            eval_env.close()
+        if evaluator.is_pruned:
+            raise optuna.TrialPruned()
+        return final
+
+    return objective
+
+
+def optimize(args: argparse.Namespace, hyperparams: dict[str, Any]) -> optuna.Study:
+    """Run ``args.n_trials`` trials of this worker in the shared (or local SQLite) study."""
+    study_name = args.study_name or f"{args.algo}_{args.task}"
+    storage = args.storage
+    if storage is None:
+        folder = Path(args.log_folder) / args.algo
+        folder.mkdir(parents=True, exist_ok=True)
+        storage = f"sqlite:///{(folder / f'{study_name}.db').resolve()}"
+    sampler = optuna.samplers.RandomSampler(seed=args.seed) if args.sampler == "random" else optuna.samplers.TPESampler()
+    pruner = optuna.pruners.MedianPruner(n_startup_trials=2) if args.pruner == "median" else optuna.pruners.NopPruner()
+    study = optuna.create_study(
+        study_name=study_name, storage=storage, sampler=sampler, pruner=pruner, direction="maximize", load_if_exists=True
+    )
+    study.optimize(objective_factory(args, hyperparams), n_trials=args.n_trials, n_jobs=args.n_jobs)
+    complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    if complete:
+        print(f"Best trial of study {study_name!r} ({len(study.trials)} trials): value {study.best_value:.4f}")
+        for key, value in study.best_params.items():
+            print(f"    {key}: {value}")
+    print(f"Study storage: {storage}")
+    return study

@@ -1,0 +1,138 @@
+"""rl-zoo3 interop (sb3_saeir.zoo): rl-zoo3's own train and enjoy run the package's methods on its tasks."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.monitor import load_results
+
+from sb3_saeir import MultiAgentVecEnv, make_multiagent_vec_env
+from sb3_saeir.config import ALGOS
+from sb3_saeir.zoo import GameMonitor, games_to_agents, prepare_enjoy_args, prepare_train_args, register_algorithms
+
+REPO = Path(__file__).parent.parent
+TASK = "cn-sparse-n3"
+
+
+def run_launcher(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
+    result = subprocess.run(
+        [sys.executable, "-m", "sb3_saeir.zoo", *args], cwd=REPO, env=env, capture_output=True, text=True, timeout=300
+    )
+    assert result.returncode == 0, f"{args[0]} failed:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+    return result
+
+
+@pytest.mark.parametrize("algo", ["saeir_ppo", "mappo"])
+def test_train_and_enjoy(tmp_path, algo):
+    folder = tmp_path / "logs"
+    # 300 agent-steps = 50 vec steps of 2 games x 3 agents = 2 episodes per game; eval every 60 // 2 = 30 vec steps
+    run_launcher(
+        "train", "--algo", algo, "--env", TASK, "--conf-file", f"zoo_configs/{algo}.yml", "-f", str(folder),
+        "--num-threads", "1", "--device", "cpu", "--seed", "0", "-n", "300", "-params", "n_envs:2", "n_steps:10",
+        "--eval-freq", "60", "--eval-episodes", "3",
+    )  # fmt: skip
+    run = folder / algo / f"{TASK}_1"
+    for name in (f"{TASK}.zip", "best_model.zip", "evaluations.npz", f"{TASK}/config.yml", f"{TASK}/args.yml"):
+        assert (run / name).is_file(), name
+    config = yaml.load((run / TASK / "config.yml").read_text(), Loader=yaml.UnsafeLoader)
+    assert config["vec_env_wrapper"] == "sb3_saeir.zoo.games_to_agents"  # added by the launcher
+    assert config["n_envs"] == 2 and config["policy"] == ("MSHGPolicy" if algo == "saeir_ppo" else "MAPPOPolicy")
+
+    model = ALGOS[algo].load(run / f"{TASK}.zip", device="cpu")
+    assert model.n_agents == 3 and model.n_envs == 6  # n_envs = 2 games -> 6 agent slots
+    assert model.num_timesteps == 300  # agent-steps
+    assert np.load(run / "evaluations.npz")["timesteps"].tolist() == [180]  # 30 vec steps x 6 slots
+
+    # per-game monitor: rl-zoo3's empty per-game files are replaced by one row per finished game
+    assert not list(run.glob("[0-9]*.monitor.csv"))
+    games = load_results(str(run))
+    assert len(games) == 4 and (games["l"] == 25).all() and "coverage_rate" in games
+
+    result = run_launcher(
+        "enjoy", "--algo", algo, "--env", TASK, "-f", str(folder), "--no-render", "-n", "50", "--num-threads", "1",
+        "--device", "cpu", "--reward-log", str(tmp_path / "replay"),
+    )  # fmt: skip
+    assert f"Loading {run / TASK}.zip" in result.stdout
+    assert "4 finished games (2 in parallel)" in result.stdout  # --n-envs 1 became 2 games; 50 steps = 2 episodes
+    assert len(load_results(str(tmp_path / "replay"))) == 4
+
+
+def zoo_game_venv(n_games, seed, monitor_dir=None):
+    """The game vec env rl-zoo3 builds (ExperimentManager.create_envs)."""
+    spec = gym.spec(TASK)
+    return make_vec_env(
+        lambda **kwargs: spec.make(**kwargs), n_envs=n_games, seed=seed, env_kwargs={"N": 3}, monitor_dir=monitor_dir
+    )
+
+
+def test_games_to_agents_layout_seeding_and_monitor(tmp_path):
+    env = games_to_agents(zoo_game_venv(2, seed=7, monitor_dir=str(tmp_path)))
+    assert isinstance(env, GameMonitor) and isinstance(env.venv, MultiAgentVecEnv)
+    assert env.n_games == 2 and env.n_agents == 3 and env.num_envs == 6  # slot = game * n_agents + agent
+    assert not list(tmp_path.glob("[0-9]*.monitor.csv"))  # rl-zoo3's never-stepped game monitors are removed
+
+    obs = env.reset()
+    # rl-zoo3's seed reaches the games: game g is reset with seed + g, as make_multiagent_vec_env(seed=7) does
+    reference = make_multiagent_vec_env(TASK, n_games=2, seed=7, N=3)
+    np.testing.assert_array_equal(obs, reference.reset())
+    np.testing.assert_array_equal(obs, games_to_agents(zoo_game_venv(2, seed=7)).reset())
+    assert not np.array_equal(obs, games_to_agents(zoo_game_venv(2, seed=8)).reset())
+    assert not np.array_equal(obs[:3], obs[3:])  # the two games differ
+
+    rng = np.random.default_rng(0)
+    for _ in range(25):
+        actions = rng.integers(0, 5, size=6)
+        _, rewards, dones, infos = env.step(actions)
+        np.testing.assert_array_equal(rewards, reference.step(actions)[1])
+    assert dones.all() and [i for i, info in enumerate(infos) if "episode" in info] == [0, 3]
+    env.close()
+    games = load_results(str(tmp_path))  # games.monitor.csv: one row per game, not per agent
+    assert len(games) == 2 and (games["l"] == 25).all()
+    assert games["r"].tolist() == [infos[0]["episode"]["r"], infos[3]["episode"]["r"]]
+
+
+def test_game_env_is_one_game():
+    env = gym.make(TASK, N=3)
+    assert env.observation_space.shape == (3, 18) and env.action_space.nvec.tolist() == [5, 5, 5]
+    assert env.unwrapped.saeir_task == TASK and env.unwrapped.saeir_task_kwargs == {"N": 3}
+    env.reset(seed=0)
+    ends = []
+    for _ in range(25):
+        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert isinstance(reward, float)
+        ends.append(terminated or truncated)
+    assert ends == [False] * 24 + [True] and truncated and "coverage_rate" in info["episode_metrics"]
+    env.close()
+
+
+def test_games_to_agents_rejects_other_envs():
+    venv = make_vec_env("CartPole-v1", n_envs=1)
+    with pytest.raises(TypeError, match="package task"):
+        games_to_agents(venv)
+
+
+def test_register_algorithms():
+    from rl_zoo3.utils import ALGOS as ZOO_ALGOS
+
+    assert set(register_algorithms()) == set(ALGOS)
+    assert all(ZOO_ALGOS[name] is algo_class for name, algo_class in ALGOS.items())
+
+
+def test_launcher_arguments():
+    args = prepare_train_args(["--algo", "saeir_ppo", "--env", TASK, "-params", "n_envs:2", "-f", "x", "-params", "a:1"])
+    assert args[args.index("--conf-file") + 1].endswith("zoo_configs/saeir_ppo.yml")  # packaged config by default
+    assert args[args.index("-params") + 1 :] == ["n_envs:2", "a:1", "vec_env_wrapper:'sb3_saeir.zoo.games_to_agents'"]
+    assert args[args.index("-f") + 1] == "x"
+    own = prepare_train_args(["--algo", "mappo", "--env", TASK, "-params", "vec_env_wrapper:'my.wrapper'"])
+    assert own[own.index("-params") + 1 :] == ["vec_env_wrapper:'my.wrapper'"]
+    other = ["--algo", "ppo", "--env", "CartPole-v1", "-params", "n_envs:2"]
+    assert prepare_train_args(other) == other  # other envs: untouched
+    assert prepare_enjoy_args(["--env", TASK, "-f", "x"])[-2:] == ["--n-envs", "2"]
+    assert prepare_enjoy_args(["--env", TASK, "--n-envs", "4"])[-2:] == ["--n-envs", "4"]

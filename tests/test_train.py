@@ -66,8 +66,12 @@ def test_continue_training_restores_value_norm_and_optimizer(trained):
 def test_enjoy_prints_metrics_and_writes_gif(trained, capsys, tmp_path):
     log_folder, _ = trained
     gif = tmp_path / "replay.gif"
-    assert enjoy_main(["--algo", "saeir_ppo", "-f", str(log_folder), "--exp-id", "1", "-n", "4", "--n-games", "2",
-                       "--gif", str(gif)]) == 0
+    assert (
+        enjoy_main(
+            ["--algo", "saeir_ppo", "-f", str(log_folder), "--exp-id", "1", "-n", "4", "--n-games", "2", "--gif", str(gif)]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "coverage_rate" in out and "4 episodes" in out
     assert gif.stat().st_size > 1000

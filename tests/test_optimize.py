@@ -1,0 +1,132 @@
+"""--optimize: Optuna trials in a local SQLite study, and two worker processes sharing one PostgreSQL study."""
+
+import glob
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import optuna
+import pytest
+
+from sb3_saeir.train import main as train_main
+
+TINY = [
+    "--task",
+    "cn-sparse-n3",
+    "--n-games",
+    "2",
+    "-n",
+    "120",
+    "--eval-episodes",
+    "2",
+    "--n-evaluations",
+    "1",
+    "-params",
+    "n_steps:10",
+    "--verbose",
+    "0",
+]
+
+
+def test_local_sqlite_study(tmp_path):
+    argv = ["--algo", "saeir_ppo", *TINY, "--optimize", "--n-trials", "2", "--sampler", "random", "-f", str(tmp_path)]
+    assert train_main(argv) == 0
+    database = tmp_path / "saeir_ppo" / "saeir_ppo_cn-sparse-n3.db"
+    assert database.is_file()
+    study = optuna.load_study(study_name="saeir_ppo_cn-sparse-n3", storage=f"sqlite:///{database}")
+    complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(complete) == 2
+    assert {"learning_rate", "intrinsic_coef", "group_size", "n_epochs"} <= set(study.best_trial.params)
+    assert 0.0 <= study.best_value <= 1.0  # coverage rate
+
+
+def postgres_bin_dir():
+    candidates = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
+    for folder in reversed(candidates):
+        if os.path.exists(os.path.join(folder, "initdb")) and os.path.exists(os.path.join(folder, "pg_ctl")):
+            return folder
+    return None
+
+
+def free_port():
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def postgres_url():
+    """A throwaway PostgreSQL server on loopback (Debian's server binaries; scripts/install_postgres.sh installs them)."""
+    bin_dir = postgres_bin_dir()
+    if bin_dir is None:
+        pytest.fail("PostgreSQL server binaries not found: run `sudo bash scripts/install_postgres.sh` (CI does).")
+    # not under pytest's tmp folder: that one is private to the current user, and initdb cannot run as root
+    root = Path(tempfile.mkdtemp(prefix="sb3_saeir_pg_"))
+    data = root / "data"
+    as_user = []
+    if os.geteuid() == 0:
+        as_user = ["runuser", "-u", "postgres", "--"]
+        shutil.chown(root, "postgres")
+    port = free_port()
+    subprocess.run(
+        [*as_user, f"{bin_dir}/initdb", "-D", str(data), "-A", "trust", "-U", "postgres"], check=True, capture_output=True
+    )
+    options = f"-p {port} -k {data.parent} -c listen_addresses=127.0.0.1"
+    subprocess.run(
+        [*as_user, f"{bin_dir}/pg_ctl", "-D", str(data), "-o", options, "-w", "-l", str(data.parent / "log"), "start"],
+        check=True,
+        capture_output=True,
+    )
+    try:
+        subprocess.run([f"{bin_dir}/createdb", "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", "optuna"], check=True)
+        yield f"postgresql://postgres@127.0.0.1:{port}/optuna"
+    finally:
+        subprocess.run([*as_user, f"{bin_dir}/pg_ctl", "-D", str(data), "-m", "fast", "stop"], capture_output=True)
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def test_two_workers_share_a_postgres_study(postgres_url, tmp_path):
+    argv = [
+        sys.executable,
+        "-m",
+        "sb3_saeir.train",
+        "--algo",
+        "saeir_ppo",
+        *TINY,
+        "--optimize",
+        "--n-trials",
+        "2",
+        "--storage",
+        postgres_url,
+        "--study-name",
+        "shared",
+        "--sampler",
+        "random",
+    ]
+    workers = []
+    for worker in range(2):
+        log = open(tmp_path / f"worker{worker}.log", "w")
+        workers.append(
+            (
+                subprocess.Popen(
+                    [*argv, "--seed", str(worker), "-f", str(tmp_path / f"w{worker}")], stdout=log, stderr=subprocess.STDOUT
+                ),
+                log,
+            )
+        )
+        time.sleep(1)  # both create-or-load the study; the second one loads it
+    for process, log in workers:
+        assert process.wait(timeout=600) == 0, (tmp_path / f"worker{workers.index((process, log))}.log").read_text()
+        log.close()
+    study = optuna.load_study(study_name="shared", storage=postgres_url)
+    complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(complete) == 4
+    workers_seen = {trial.user_attrs["worker"] for trial in complete}
+    assert len(workers_seen) == 2, workers_seen  # both processes contributed trials
+    assert study.best_trial.value == max(t.value for t in complete)
+    assert not (tmp_path / "w0" / "saeir_ppo").exists() or not list((tmp_path / "w0" / "saeir_ppo").glob("*.db"))

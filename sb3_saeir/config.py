@@ -41,11 +41,8 @@ _SPECIAL_KEYS = ("n_timesteps", "n_envs", "env_kwargs", "policy", "policy_kwargs
 
 
 def config_dir() -> Path:
-    """Folder of the packaged configs (``zoo_configs/`` next to the package, or inside it when installed)."""
-    for candidate in (Path(__file__).parent / "zoo_configs", Path(__file__).parent.parent / "zoo_configs"):
-        if candidate.is_dir():
-            return candidate
-    raise FileNotFoundError("zoo_configs/ not found next to the sb3_saeir package.")
+    """Folder of the packaged configs, ``sb3_saeir/zoo_configs/`` (the repository's ``zoo_configs/`` links to it)."""
+    return Path(__file__).parent / "zoo_configs"
 
 
 def config_path(algo: str) -> Path:

@@ -132,12 +132,13 @@ class MultiAgentEvalCallback(EventCallback):
         self.last_eval_timestep = 0
         self.history: dict[str, list[list[float]]] = {}
         self.timesteps: list[int] = []
+        self.last_summary: dict[str, float] = {}
 
     def _init_callback(self) -> None:
         for path in (self.log_path, self.best_model_save_path):
             if path is not None:
                 os.makedirs(path, exist_ok=True)
-        self.last_eval_timestep = self.num_timesteps
+        self.last_eval_timestep = max(self.last_eval_timestep, self.model.num_timesteps)
 
     def _on_step(self) -> bool:
         if self.eval_freq > 0 and self.num_timesteps - self.last_eval_timestep >= self.eval_freq:
@@ -150,6 +151,7 @@ class MultiAgentEvalCallback(EventCallback):
         summary, episodes = evaluate_multiagent_policy(
             self.model, self.eval_env, self.n_eval_episodes, self.deterministic, True
         )
+        self.last_summary = summary
         self.timesteps.append(self.num_timesteps)
         for key in sorted({key for episode in episodes for key in episode}):
             self.history.setdefault(key, []).append([episode.get(key, np.nan) for episode in episodes])

@@ -203,3 +203,11 @@ def test_errors():
         saeir_bonus(np.array(1.0))
     with pytest.raises(ValueError, match="episode_starts"):
         saeir_bonus(np.zeros((5, 2)), episode_starts=np.zeros((4, 2)))
+
+
+def test_value_softmax_entropy_closed_form():
+    from sb3_saeir.intrinsic.saeir import value_softmax_entropy
+
+    values = np.array([[0.0, 1.0], [0.0, 1.0], [np.log(2.0), 1.0]])  # (T=3, 2 series)
+    p = np.array([1.0, 1.0, 2.0]) / 4.0
+    np.testing.assert_allclose(value_softmax_entropy(values), [-(p * np.log(p)).sum(), np.log(3.0)], atol=1e-12)

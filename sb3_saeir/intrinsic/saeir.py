@@ -174,6 +174,19 @@ def _paper_bonus(
     return np.where(has_next & (term_now > term_next), term_now, 0.0)
 
 
+def value_softmax_entropy(values: np.ndarray) -> np.ndarray:
+    """Entropy of the softmax over time of each series of stored values: the "system entropy" of the whole window
+    (the paper's Fig. 1 idea), ``H = log sum_t exp(v_t) - sum_t p_t v_t``.
+
+    :param values: ``(T, ...)`` time-first
+    :return: ``(...)``
+    """
+    values = np.asarray(values, dtype=np.float64)
+    log_sum = np.logaddexp.reduce(values, axis=0)
+    probs = np.exp(values - log_sum)
+    return log_sum - (probs * values).sum(axis=0)
+
+
 class SAEIRCallback(IntrinsicRewardCallback):
     """SAEIR as a callback: the bonus of every critic scale from that scale's stored values (spec §2).
 
@@ -183,8 +196,8 @@ class SAEIRCallback(IntrinsicRewardCallback):
     (the SAE-only ablation uses it on a single MAPPO critic).
 
     Logs ``rollout/intrinsic_reward_mean`` (unscaled, all scales), and per scale
-    ``rollout/intrinsic_reward_mean_<scale>`` and ``rollout/intrinsic_fire_rate_<scale>`` (fraction of steps where
-    the bonus fired).
+    ``rollout/intrinsic_reward_mean_<scale>``, ``rollout/intrinsic_fire_rate_<scale>`` (fraction of steps where
+    the bonus fired) and ``rollout/value_entropy_<scale>`` (entropy of the value softmax over the whole window).
 
     :param coef: beta (0.1 in the released code)
     :param variant: ``"code"`` (released code, default) or ``"paper"`` (Eqs. 12-14 literally)
@@ -215,7 +228,9 @@ class SAEIRCallback(IntrinsicRewardCallback):
 
     def _log_bonus(self, bonus: np.ndarray, buffer: GroupedRecurrentRolloutBuffer) -> None:
         self.logger.record("rollout/intrinsic_reward_mean", float(bonus.mean()))
+        window_entropy = value_softmax_entropy(buffer.values)  # (E, K)
         scales = getattr(self.model.policy, "scales", tuple(f"scale{k}" for k in range(bonus.shape[-1])))
         for k, scale in enumerate(scales):
             self.logger.record(f"rollout/intrinsic_reward_mean_{scale}", float(bonus[..., k].mean()))
             self.logger.record(f"rollout/intrinsic_fire_rate_{scale}", float((bonus[..., k] > 0).mean()))
+            self.logger.record(f"rollout/value_entropy_{scale}", float(window_entropy[..., k].mean()))

@@ -1,0 +1,161 @@
+"""Benchmark runner: CSV, table and curves from tiny runs; resume; failures; the Ray path; the entropy plot."""
+
+import csv
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from sb3_saeir import benchmark
+from sb3_saeir.benchmark import RunSpec, execute_run, main, parse_seeds, run_folder
+
+TINY = ["-n", "200", "--n-games", "2", "--eval-freq", "100", "--eval-episodes", "2", "-params", "n_steps:10"]
+
+
+def read_csv(path):
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    argv = ["--algos", "saeir_ppo", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY, "--jobs", "2"]
+    assert main([*argv, "--out", str(out), "--rliable"]) == 0
+    return out, argv
+
+
+def test_parse_seeds():
+    assert parse_seeds("1-5") == [1, 2, 3, 4, 5]
+    assert parse_seeds("1,3,7") == [1, 3, 7]
+
+
+def test_csv_table_figure(finished):
+    out, _ = finished
+    rows = read_csv(out / "runs.csv")
+    assert {(r["algo"], r["seed"]) for r in rows} == {("saeir_ppo", "1"), ("saeir_ppo", "2"), ("mappo", "1"), ("mappo", "2")}
+    for algo in ("saeir_ppo", "mappo"):  # at 0, at the first vec step past each 100 agent-steps, at the end (4 rollouts)
+        steps = [int(r["timesteps"]) for r in rows if r["algo"] == algo and r["seed"] == "1"]
+        assert steps == [0, 102, 204, 240]
+    assert {"coverage_rate_mean", "ep_rew_mean", "env_steps", "coverage_rate_std"} <= set(rows[0])
+    assert all(int(r["env_steps"]) * 3 == int(r["timesteps"]) for r in rows)
+    table = (out / "table.md").read_text()
+    assert table.count("\n") == 4 and "| saeir_ppo |" in table and "(n=2)" in table and "**" in table
+    assert "cn-sparse-n3 Coverage %" in table
+    assert (out / "curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "IQM" in (out / "aggregate.md").read_text()
+
+
+def test_rerun_skips_finished_runs(finished, capsys):
+    out, argv = finished
+    before = (out / "runs.csv").read_text()
+    assert main([*argv, "--out", str(out)]) == 0
+    assert capsys.readouterr().out.count(": skipped") == 4
+    assert (out / "runs.csv").read_text() == before
+
+
+def test_interrupted_run_resumes_from_checkpoint(tmp_path, monkeypatch):
+    spec = RunSpec("mappo", "cn-sparse-n3", 3, 300, 2, 100, 2, {"n_steps": 10})
+    folder = run_folder(tmp_path, spec)
+    from sb3_saeir.evaluation import MultiAgentEvalCallback
+
+    original = MultiAgentEvalCallback.evaluate
+    calls = []
+
+    def crash_on_third(self):
+        calls.append(self.num_timesteps)
+        if len(calls) == 3:
+            raise RuntimeError("machine went down")
+        return original(self)
+
+    monkeypatch.setattr(MultiAgentEvalCallback, "evaluate", crash_on_third)
+    with pytest.raises(RuntimeError):
+        execute_run(spec, str(folder))
+    assert (folder / "checkpoint.zip").is_file() and not (folder / "done.json").exists()
+    monkeypatch.setattr(MultiAgentEvalCallback, "evaluate", original)
+    result = execute_run(spec, str(folder))
+    assert result["status"] == "done"
+    steps = [int(r["timesteps"]) for r in read_csv(folder / "evaluations.csv")]
+    assert calls[:2] == [0, 102] and steps[:2] == [0, 102]  # evaluations before the crash are kept
+    assert steps == sorted(set(steps)) and steps[-1] == 300  # resumed at 102: nothing repeated, nothing lost
+    assert (folder / "done.json").is_file() and not (folder / "checkpoint.zip").exists()
+
+
+def test_failing_run_does_not_stop_the_others(tmp_path, monkeypatch):
+    real = benchmark.execute_run
+
+    def flaky(spec, folder):
+        if spec.seed == 2:
+            raise ValueError("boom")
+        return real(spec, folder)
+
+    monkeypatch.setattr(benchmark, "execute_run", flaky)
+    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY, "--out", str(tmp_path)]
+    assert main(argv) == 1
+    assert "mappo/cn-sparse-n3_s2" in (tmp_path / "failures.txt").read_text()
+    assert {r["seed"] for r in read_csv(tmp_path / "runs.csv")} == {"1"}
+
+
+def test_unknown_method_or_task(tmp_path, capsys):
+    assert main(["--algos", "qmix", "--out", str(tmp_path)]) == 2
+    assert "unknown methods ['qmix']" in capsys.readouterr().err
+
+
+def test_entropy_plot(finished):
+    out, _ = finished
+    run = out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1"
+    assert main(["--entropy-plot", str(run)]) == 0
+    assert (run / "system_entropy.png").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match="no SAEIR logs"):
+        benchmark.plot_system_entropy(out / "runs" / "mappo" / "cn-sparse-n3_s1", out / "x.png")
+
+
+def free_port():
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture
+def ray_head():
+    ray_bin = Path(sys.executable).parent / "ray"
+    port = free_port()
+    temp = Path(tempfile.mkdtemp(prefix="ray_"))  # short: Ray's unix socket paths must stay under 108 characters
+    command = [
+        str(ray_bin),
+        "start",
+        "--head",
+        "--node-ip-address",
+        "127.0.0.1",
+        "--port",
+        str(port),
+        "--num-cpus",
+        "2",
+        "--include-dashboard",
+        "false",
+        "--temp-dir",
+        str(temp),
+        "--disable-usage-stats",
+    ]
+    subprocess.run(command, check=True, capture_output=True, timeout=180)
+    try:
+        yield f"127.0.0.1:{port}"
+    finally:
+        import ray
+
+        ray.shutdown()
+        subprocess.run([str(ray_bin), "stop", "--force"], capture_output=True, timeout=120)
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+def test_ray_cluster_runs(ray_head, tmp_path):
+    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY, "--out", str(tmp_path)]
+    assert main([*argv, "--ray-address", ray_head]) == 0
+    rows = read_csv(tmp_path / "runs.csv")
+    assert {r["seed"] for r in rows} == {"1", "2"}
+    assert all((run_folder(tmp_path, RunSpec("mappo", "cn-sparse-n3", s, 200)) / "done.json").is_file() for s in (1, 2))
+    assert (tmp_path / "table.md").is_file() and (tmp_path / "curves.png").is_file()

@@ -5,6 +5,7 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh tests,zoo,plots,ray || { echo "install failed"; exit 1; }
 bash scripts/install_postgres.sh || { echo "PostgreSQL install failed (needed by the distributed tuning test)"; exit 1; }
+bash scripts/install_football.sh || { echo "gfootball install failed (needed by the football tests)"; exit 1; }
 echo "== ruff"
 .venv/bin/ruff check sb3_saeir tests examples benchmarks || { echo "lint errors (ruff check) - fix them or run 'make format'"; exit 1; }
 echo "== mypy"

@@ -16,5 +16,19 @@ register_task(
     main_metric="coverage_rate",
     description="Sparse Cooperative Navigation, 4 agents / 4 landmarks, 25 steps (mpe2 simple_spread_v3)",
 )
+register_task(
+    "grf-3v1-keeper",
+    "sb3_saeir.envs.football:FootballEnv",
+    kwargs={"scenario": "academy_3_vs_1_with_keeper", "N": 3},
+    main_metric="success",
+    description="Google Research Football academy 3 vs 1 with keeper, 3 agents, <= 400 steps (needs the football extra)",
+)
+register_task(
+    "grf-counterattack-easy",
+    "sb3_saeir.envs.football:FootballEnv",
+    kwargs={"scenario": "academy_counterattack_easy", "N": 4},
+    main_metric="success",
+    description="Google Research Football academy counterattack easy, 4 agents, <= 400 steps (needs the football extra)",
+)
 
 __all__ = ["TaskSpec", "get_task_factory", "get_task_spec", "list_tasks", "make_task", "register_task"]

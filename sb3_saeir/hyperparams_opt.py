@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import random
 import socket
+import time
 from pathlib import Path
 from typing import Any
 
 import optuna
+import sqlalchemy.exc
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
@@ -140,6 +143,44 @@ def objective_factory(args: argparse.Namespace, hyperparams: dict[str, Any]) -> 
     return objective
 
 
+def create_or_load_study(
+    study_name: str,
+    storage: str,
+    sampler: optuna.samplers.BaseSampler,
+    pruner: optuna.pruners.BasePruner,
+    max_attempts: int = 5,
+) -> optuna.Study:
+    """Create the study, or load it if another worker already did.
+
+    Workers started together on a fresh database race to create Optuna's tables: the loser gets a database error
+    (a duplicate table or type) even though the schema is now there. Retry a few times after a short random pause;
+    a storage that keeps failing (wrong URL, server down) re-raises the last error.
+
+    :param study_name: Study name shared by the workers.
+    :param storage: Optuna storage URL.
+    :param sampler: Sampler of this worker.
+    :param pruner: Pruner of this worker.
+    :param max_attempts: Attempts before giving up.
+    :return: The study.
+    """
+    for attempt in range(1, max_attempts + 1):
+        try:
+            return optuna.create_study(
+                study_name=study_name,
+                storage=storage,
+                sampler=sampler,
+                pruner=pruner,
+                direction="maximize",
+                load_if_exists=True,
+            )
+        except sqlalchemy.exc.DBAPIError as error:
+            if attempt == max_attempts:
+                raise
+            print(f"Study storage not ready ({type(error).__name__}), retrying ({attempt}/{max_attempts - 1})")
+            time.sleep(random.uniform(0.5, 2.0) * attempt)
+    raise AssertionError("unreachable")
+
+
 def optimize(args: argparse.Namespace, hyperparams: dict[str, Any]) -> optuna.Study:
     """Run ``args.n_trials`` trials of this worker in the shared (or local SQLite) study."""
     study_name = args.study_name or f"{args.algo}_{args.task}"
@@ -150,9 +191,7 @@ def optimize(args: argparse.Namespace, hyperparams: dict[str, Any]) -> optuna.St
         storage = f"sqlite:///{(folder / f'{study_name}.db').resolve()}"
     sampler = optuna.samplers.RandomSampler(seed=args.seed) if args.sampler == "random" else optuna.samplers.TPESampler()
     pruner = optuna.pruners.MedianPruner(n_startup_trials=2) if args.pruner == "median" else optuna.pruners.NopPruner()
-    study = optuna.create_study(
-        study_name=study_name, storage=storage, sampler=sampler, pruner=pruner, direction="maximize", load_if_exists=True
-    )
+    study = create_or_load_study(study_name, storage, sampler, pruner)
     study.optimize(objective_factory(args, hyperparams), n_trials=args.n_trials, n_jobs=args.n_jobs)
     complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
     if complete:

@@ -7,12 +7,13 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import optuna
 import pytest
+import sqlalchemy.exc
 
+from sb3_saeir.hyperparams_opt import create_or_load_study
 from sb3_saeir.train import main as train_main
 
 TINY = [
@@ -43,6 +44,39 @@ def test_local_sqlite_study(tmp_path):
     assert len(complete) == 2
     assert {"learning_rate", "intrinsic_coef", "group_size", "n_epochs"} <= set(study.best_trial.params)
     assert 0.0 <= study.best_value <= 1.0  # coverage rate
+
+
+def race_error():
+    """What the losing worker of a schema-creation race gets (psycopg's UniqueViolation through SQLAlchemy)."""
+    return sqlalchemy.exc.IntegrityError("CREATE TABLE alembic_version", {}, Exception("duplicate key value"))
+
+
+def test_study_creation_retries_after_a_schema_race(monkeypatch, tmp_path):
+    calls = []
+    create_study = optuna.create_study
+
+    def racing_create_study(**kwargs):
+        calls.append(kwargs["study_name"])
+        if len(calls) == 1:
+            raise race_error()
+        return create_study(**kwargs)
+
+    monkeypatch.setattr(optuna, "create_study", racing_create_study)
+    monkeypatch.setattr("sb3_saeir.hyperparams_opt.time.sleep", lambda seconds: None)
+    storage = f"sqlite:///{tmp_path / 'study.db'}"
+    study = create_or_load_study("raced", storage, optuna.samplers.RandomSampler(0), optuna.pruners.NopPruner())
+    assert calls == ["raced", "raced"]
+    assert study.study_name == "raced"
+
+
+def test_study_creation_gives_up_on_a_broken_storage(monkeypatch):
+    def broken_create_study(**kwargs):
+        raise race_error()
+
+    monkeypatch.setattr(optuna, "create_study", broken_create_study)
+    monkeypatch.setattr("sb3_saeir.hyperparams_opt.time.sleep", lambda seconds: None)
+    with pytest.raises(sqlalchemy.exc.IntegrityError):
+        create_or_load_study("broken", "sqlite://", optuna.samplers.RandomSampler(0), optuna.pruners.NopPruner(), 3)
 
 
 def postgres_bin_dir():
@@ -119,7 +153,7 @@ def test_two_workers_share_a_postgres_study(postgres_url, tmp_path):
                 log,
             )
         )
-        time.sleep(1)  # both create-or-load the study; the second one loads it
+        # no pause: both workers create-or-load the study on a fresh database at once (create_or_load_study retries)
     for process, log in workers:
         assert process.wait(timeout=600) == 0, (tmp_path / f"worker{workers.index((process, log))}.log").read_text()
         log.close()

@@ -317,6 +317,21 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000) -> str:
     return "\n".join(lines) + "\n"
 
 
+def numeric_series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], list[float]]:
+    """(agent-steps, values) of ``key`` over the rows of a ``progress.csv`` that hold a number for it.
+
+    SB3's CSV logger leaves a key empty in rows dumped without it (for example the evaluation rows), so each series
+    keeps only its own rows.
+    """
+    steps, values = [], []
+    for row in rows:
+        value, step = row.get(key), row.get("time/total_timesteps")
+        if isinstance(value, (int, float)) and isinstance(step, (int, float)):
+            steps.append(float(step))
+            values.append(float(value))
+    return steps, values
+
+
 def plot_system_entropy(run: Path, path: Path) -> None:
     """SAEIR bonus and value-softmax entropy per scale over training, from a run's ``progress.csv``."""
     import matplotlib
@@ -327,15 +342,14 @@ def plot_system_entropy(run: Path, path: Path) -> None:
     rows = read_rows(run / "progress.csv")
     if not rows or "rollout/intrinsic_reward_mean" not in rows[0]:
         raise ValueError(f"{run / 'progress.csv'} has no SAEIR logs (rollout/intrinsic_reward_mean).")
-    steps = [row["time/total_timesteps"] for row in rows]
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
-    top.plot(steps, [row["rollout/intrinsic_reward_mean"] for row in rows], label="all scales")
+    top.plot(*numeric_series(rows, "rollout/intrinsic_reward_mean"), label="all scales")
     for key in sorted(k for k in rows[0] if k.startswith("rollout/intrinsic_reward_mean_")):
-        top.plot(steps, [row[key] for row in rows], label=key.rsplit("_", 1)[1], alpha=0.7)
+        top.plot(*numeric_series(rows, key), label=key.rsplit("_", 1)[1], alpha=0.7)
     top.set_ylabel("SAEIR bonus (unscaled)")
     top.legend(fontsize=8)
     for key in sorted(k for k in rows[0] if k.startswith("rollout/value_entropy_")):
-        bottom.plot(steps, [row[key] for row in rows], label=key.rsplit("_", 1)[1])
+        bottom.plot(*numeric_series(rows, key), label=key.rsplit("_", 1)[1])
     bottom.set_ylabel("value-softmax entropy")
     bottom.set_xlabel("agent-steps")
     bottom.legend(fontsize=8)

@@ -114,6 +114,20 @@ def test_entropy_plot(finished):
         benchmark.plot_system_entropy(out / "runs" / "mappo" / "cn-sparse-n3_s1", out / "x.png")
 
 
+def test_numeric_series_skips_rows_without_the_key(finished):
+    """SB3's CSV logger leaves keys empty in rows dumped without them (the evaluation rows): a series keeps numbers only."""
+    out, _ = finished
+    rows = benchmark.read_rows(out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1" / "progress.csv")
+    key = "rollout/value_entropy_team"
+    assert any(row[key] == "" for row in rows)  # the evaluation rows
+    steps, values = benchmark.numeric_series(rows, key)
+    assert len(steps) == len(values) == sum(isinstance(row[key], (int, float)) for row in rows) > 0
+    assert all(isinstance(v, float) for v in values)
+    assert steps == sorted(steps)
+    hand = [(1.0, 0.5), (2.0, "")]
+    assert benchmark.numeric_series([{"time/total_timesteps": s, key: v} for s, v in hand], key) == ([1.0], [0.5])
+
+
 def free_port():
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))

@@ -1,16 +1,22 @@
-"""Slow learning checks (``make test-slow``): SAEIR_PPO beats a random policy on sparse Cooperative Navigation.
+"""Slow learning checks (``make test-slow``): SAEIR_PPO beats a random policy.
 
-Budget: BUDGET agent-steps, 16 games, the package defaults (the paper's navigation settings), seed 0; about
-7-9 minutes on one core. The paper trains 20M env steps (60M agent-steps); this is a smoke-level learning check.
+- Sparse Cooperative Navigation (the issue's learning check): BUDGET agent-steps, 16 games, the package defaults
+  (the paper's navigation settings), seed 0; about 7-9 minutes on one core. The paper trains 20M env steps (60M
+  agent-steps). **This check does not pass yet** at budgets this machine can afford (see docs/results.md): it is kept
+  as the open target, not weakened.
+- Dense mpe2 ``simple_spread`` (a sanity check that the learner itself works): DENSE_BUDGET agent-steps, same
+  defaults, about 6 minutes on one core.
 """
 
 import numpy as np
 import pytest
+from mpe2 import simple_spread_v3
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.evaluation import evaluate_multiagent_policy
 
 BUDGET = 500_000
+DENSE_BUDGET = 300_000
 EVAL_EPISODES = 200
 
 
@@ -44,3 +50,22 @@ def test_saeir_ppo_beats_random_coverage():
     )
     # "clearly above": at least three times the random rate and 0.05 (absolute) higher
     assert trained["coverage_rate_mean"] >= max(3 * random["coverage_rate_mean"], random["coverage_rate_mean"] + 0.05)
+
+
+def dense_spread():
+    return simple_spread_v3.parallel_env(N=3, max_cycles=25, continuous_actions=False)
+
+
+def dense_eval_env():
+    return make_multiagent_vec_env(dense_spread, n_games=10, seed=999)
+
+
+@pytest.mark.slow
+def test_saeir_ppo_learns_dense_spread():
+    env = make_multiagent_vec_env(dense_spread, n_games=16, seed=0)
+    model = SAEIR_PPO("MSHGPolicy", env, seed=0).learn(DENSE_BUDGET)
+    trained = evaluate_multiagent_policy(model, dense_eval_env(), n_episodes=100)
+    random = evaluate_multiagent_policy(RandomPolicy(env.action_space), dense_eval_env(), n_episodes=100)
+    print(f"dense simple_spread return: SAEIR_PPO {trained['ep_rew_mean']:.2f}, random {random['ep_rew_mean']:.2f}")
+    # measured at this budget: SAEIR_PPO -19.98, random -25.62 (100 episodes); require a 3-point margin
+    assert trained["ep_rew_mean"] >= random["ep_rew_mean"] + 3.0

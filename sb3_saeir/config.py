@@ -85,7 +85,11 @@ def build_callbacks(spec: Any) -> list[BaseCallback]:
 
 
 def parse_policy_kwargs(policy_kwargs: Any) -> dict[str, Any]:
-    """A dict, or a string evaluated with ``nn`` (torch.nn) in scope, as rl-zoo does."""
+    """A dict, or a string evaluated with ``nn`` (torch.nn) in scope, as rl-zoo does.
+
+    Also used for ``intrinsic_kwargs``, so that
+    ``-params "intrinsic_kwargs:dict(variant='paper')"`` works like rl-zoo's ``policy_kwargs``.
+    """
     if policy_kwargs is None:
         return {}
     if isinstance(policy_kwargs, str):
@@ -120,6 +124,8 @@ def build_model(
     if env is None:
         env = make_multiagent_vec_env(task, n_games=games, seed=seed, **(params.get("env_kwargs") or {}))
     algo_kwargs = {key: value for key, value in params.items() if key not in _SPECIAL_KEYS}
+    if "intrinsic_kwargs" in algo_kwargs:
+        algo_kwargs["intrinsic_kwargs"] = parse_policy_kwargs(algo_kwargs["intrinsic_kwargs"])
     config_games = params.get("n_envs", games)
     n_agents = env.num_envs // games
     if "batch_size" in algo_kwargs and algo_kwargs["batch_size"] == params.get("n_steps", 0) * config_games * n_agents:

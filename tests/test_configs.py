@@ -56,3 +56,12 @@ def test_missing_entry_and_unknown_algo():
         load_hyperparams("mappo", "grf-5v5")
     with pytest.raises(KeyError, match="saeir_ppo"):
         load_hyperparams("qmix", "cn-sparse-n3")
+
+
+@pytest.mark.parametrize("value", ["dict(variant='paper')", {"variant": "paper"}])
+def test_intrinsic_kwargs_string_or_dict(value):
+    """``-params "intrinsic_kwargs:dict(variant='paper')"`` is evaluated like rl-zoo's ``policy_kwargs`` strings."""
+    params = {**load_hyperparams("saeir_ppo", "cn-sparse-n3"), "intrinsic_kwargs": value}
+    model, env, _, _ = build_model("saeir_ppo", "cn-sparse-n3", params, n_games=2, seed=0)
+    assert model.intrinsic_kwargs == {"variant": "paper"}
+    env.close()

@@ -1,6 +1,10 @@
-"""A scripted reference policy for sparse Cooperative Navigation: shows the task is solvable.
+"""Reference policies for sparse Cooperative Navigation: a scripted oracle (the task is solvable) and uniform random.
 
     python benchmarks/scripted_navigation.py --task-n 3 --episodes 100
+    python benchmarks/scripted_navigation.py --policy random --task-n 3 --episodes 500
+
+Random: uniform actions (seed 0) through ``evaluate_multiagent_policy`` on 10 games (seed 12345), as the slow
+learning test measures it.
 
 Each episode, agents are assigned to landmarks by the permutation with the least total distance (from the true
 positions, so this is an oracle, not a decentralised policy); every step each agent takes the discrete action along
@@ -14,8 +18,9 @@ import itertools
 
 import numpy as np
 
-from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY
+from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, make_multiagent_vec_env
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
+from sb3_saeir.evaluation import evaluate_multiagent_policy
 
 NOOP, LEFT, RIGHT, DOWN, UP = range(5)  # mpe2 discrete actions
 
@@ -50,11 +55,31 @@ def run_episode(env: SparseCooperativeNavigation, seed: int) -> tuple[dict[str, 
     return infos[env.possible_agents[0]][EPISODE_METRICS_KEY], episode_return
 
 
+class RandomPolicy:
+    """Uniform discrete actions, with SB3's ``predict`` signature."""
+
+    def __init__(self, seed: int = 0) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=False):
+        return self.rng.integers(0, 5, size=len(observation)), None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task-n", type=int, default=3, help="agents = landmarks")
     parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--policy", choices=["scripted", "random"], default="scripted")
     args = parser.parse_args()
+    if args.policy == "random":
+        env_id = f"cn-sparse-n{args.task_n}"
+        metrics = evaluate_multiagent_policy(
+            RandomPolicy(), make_multiagent_vec_env(env_id, n_games=10, seed=12_345), args.episodes
+        )
+        for key, value in metrics.items():
+            if key.endswith("_mean"):
+                print(f"{key[: -len('_mean')]}: {value:.3f}")
+        return
     env = SparseCooperativeNavigation(N=args.task_n)
     results = [run_episode(env, seed) for seed in range(args.episodes)]
     for key in results[0][0]:

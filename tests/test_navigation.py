@@ -104,3 +104,32 @@ def test_episode_metrics():
 def test_continuous_actions_option():
     env = SparseCooperativeNavigation(N=3, continuous_actions=True)
     assert env.action_space("agent_0").shape == (5,)
+
+
+def test_cover_radius_and_collision_penalty_options():
+    # agents 0/1 collide (0.2 apart); landmark 0 is 0.15 from agent 0: covered only with a radius above 0.15
+    agents = [[0.0, 0.0], [0.2, 0.0], [-0.6, 0.5]]
+    landmarks = [[0.0, 0.15], [0.9, 0.9], [-0.9, 0.9]]
+    rewards = {}
+    for kwargs in ({}, {"cover_radius": 0.2}, {"cover_radius": 0.2, "collision_penalty": 0.5}):
+        env = SparseCooperativeNavigation(N=3, **kwargs)
+        env.reset(seed=0)
+        place(env, agents, landmarks)
+        _, step_rewards, _, _, infos = step_noop(env)
+        agent_pos, landmark_pos, sizes = env.positions()
+        radius = kwargs.get("cover_radius", 0.1)
+        covered = count_covered_landmarks(agent_pos, landmark_pos, radius=radius)
+        assert infos["agent_0"]["covered_landmarks"] == covered
+        assert step_rewards["agent_0"] == covered - kwargs.get("collision_penalty", 1.0) * int(any_collision(agent_pos, sizes))
+        rewards[tuple(kwargs.items())] = step_rewards["agent_0"]
+    assert list(rewards.values()) == pytest.approx([-1.0, 0.0, 0.5])
+    # the options travel through the task registry and the vec env factory
+    assert make_task("cn-sparse-n3", cover_radius=0.3).cover_radius == 0.3
+
+
+@pytest.mark.parametrize(
+    "kwargs, match", [({"cover_radius": 0.0}, "cover_radius"), ({"collision_penalty": -1}, "collision_penalty")]
+)
+def test_reward_options_are_checked(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        SparseCooperativeNavigation(N=3, **kwargs)

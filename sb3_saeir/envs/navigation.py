@@ -60,10 +60,23 @@ def any_collision(agent_positions: np.ndarray, agent_sizes: np.ndarray) -> bool:
     return bool(((distances < limits) & off_diagonal).any())
 
 
-def sparse_navigation_reward(agent_positions: np.ndarray, landmark_positions: np.ndarray, agent_sizes: np.ndarray) -> float:
-    """Team reward of one step: covered landmarks minus 1 if any two agents collide."""
-    covered = count_covered_landmarks(agent_positions, landmark_positions)
-    return float(covered - int(any_collision(agent_positions, agent_sizes)))
+def sparse_navigation_reward(
+    agent_positions: np.ndarray,
+    landmark_positions: np.ndarray,
+    agent_sizes: np.ndarray,
+    cover_radius: float = COVER_RADIUS,
+    collision_penalty: float = 1.0,
+) -> float:
+    """Team reward of one step: covered landmarks minus ``collision_penalty`` if any two agents collide.
+
+    :param agent_positions: agents' positions, shape (N, 2)
+    :param landmark_positions: landmarks' positions, shape (L, 2)
+    :param agent_sizes: agents' radii, shape (N,)
+    :param cover_radius: a landmark is covered when its nearest agent is closer than this
+    :param collision_penalty: subtracted once per step when any two agents collide
+    """
+    covered = count_covered_landmarks(agent_positions, landmark_positions, radius=cover_radius)
+    return float(covered - collision_penalty * int(any_collision(agent_positions, agent_sizes)))
 
 
 class SparseCooperativeNavigation(ParallelEnv, EzPickle):
@@ -73,6 +86,9 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
     :param max_cycles: episode length in steps
     :param continuous_actions: continuous ``Box(0, 1, (5,))`` actions instead of ``Discrete(5)``
     :param render_mode: ``None``, ``"rgb_array"`` or ``"human"``
+    :param cover_radius: a landmark counts as covered when its nearest agent is closer than this (0.1, the paper's
+        task as this package defines it; a larger radius makes the task easier)
+    :param collision_penalty: team penalty for a step in which any two agents collide (1.0; 0 switches it off)
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -82,13 +98,33 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
     }
 
     def __init__(
-        self, N: int = 3, max_cycles: int = 25, continuous_actions: bool = False, render_mode: str | None = None
+        self,
+        N: int = 3,
+        max_cycles: int = 25,
+        continuous_actions: bool = False,
+        render_mode: str | None = None,
+        cover_radius: float = COVER_RADIUS,
+        collision_penalty: float = 1.0,
     ) -> None:
-        EzPickle.__init__(self, N=N, max_cycles=max_cycles, continuous_actions=continuous_actions, render_mode=render_mode)
+        EzPickle.__init__(
+            self,
+            N=N,
+            max_cycles=max_cycles,
+            continuous_actions=continuous_actions,
+            render_mode=render_mode,
+            cover_radius=cover_radius,
+            collision_penalty=collision_penalty,
+        )
         from mpe2 import simple_spread_v3
 
         if N < 1:
             raise ValueError(f"N must be >= 1, got {N}.")
+        if cover_radius <= 0:
+            raise ValueError(f"cover_radius must be positive, got {cover_radius}.")
+        if collision_penalty < 0:
+            raise ValueError(f"collision_penalty must be >= 0 (it is subtracted), got {collision_penalty}.")
+        self.cover_radius = float(cover_radius)
+        self.collision_penalty = float(collision_penalty)
         self.n_landmarks = N
         self.max_cycles = max_cycles
         self.render_mode = render_mode
@@ -126,9 +162,9 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         observations, _, terminations, truncations, _ = self._env.step(actions)
         agent_positions, landmark_positions, agent_sizes = self.positions()
-        covered = count_covered_landmarks(agent_positions, landmark_positions)
+        covered = count_covered_landmarks(agent_positions, landmark_positions, radius=self.cover_radius)
         collided = any_collision(agent_positions, agent_sizes)
-        reward = float(covered - int(collided))
+        reward = float(covered - self.collision_penalty * int(collided))
         self._steps += 1
         self._covered_sum += covered / self.n_landmarks
         self._collision_steps += int(collided)

@@ -46,6 +46,22 @@ def training(algo: str, task: str, n_games: int, agent_steps: int, seed: int) ->
     return steps / elapsed
 
 
+def update_gflop(algo: str, task: str, n_games: int, seed: int) -> tuple[float, int]:
+    """Floating-point work of one PPO update (all epochs and minibatches) after one rollout, counted by
+    ``torch.utils.flop_counter`` (matrix products, which dominate these networks).
+
+    :return: GFLOP of the update and the agent-steps of the rollout it trains on
+    """
+    from torch.utils.flop_counter import FlopCounterMode
+
+    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed)
+    model.learn(model.n_steps * env.num_envs, callback=callbacks)  # one rollout and one update
+    with FlopCounterMode(display=False) as counter:
+        model.train()
+    env.close()
+    return counter.get_total_flops() / 1e9, model.n_steps * env.num_envs
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default="cn-sparse-n3")
@@ -53,6 +69,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=100_000, help="agent-steps per measurement")
     parser.add_argument("--algos", nargs="+", default=["random", "ippo", "saeir_ppo"], help=f"random or {sorted(ALGOS)}")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--flops", action="store_true", help="also print the GFLOP of one update per agent-step")
     args = parser.parse_args()
     th.set_num_threads(1)
 
@@ -71,6 +88,10 @@ def main() -> None:
         reference = trained[0]
         for algo in trained[1:]:
             print(f"ratio {algo}/{reference}: {results[algo] / results[reference]:.2f}")
+    if args.flops:
+        for algo in trained:
+            gflop, n_agent_steps = update_gflop(algo, args.task, args.n_games, args.seed)
+            print(f"{algo:>12}: {gflop:.2f} GFLOP per update, {gflop / n_agent_steps * 1e6:.0f} kFLOP per agent-step")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"task {args.task}, {args.n_games} games, {args.steps} agent-steps per method; peak RSS {peak_mb:.0f} MB")
 

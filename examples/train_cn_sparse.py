@@ -24,7 +24,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--algo", choices=["saeir_ppo", "ppo"], default="saeir_ppo", help="ppo: plain SB3 PPO (IPPO)")
     parser.add_argument("--task", default="cn-sparse-n3")
-    parser.add_argument("--n-games", type=int, default=16)
+    parser.add_argument(
+        "--n-games", type=int, default=128, help="games per rollout (128: the paper's; 16 stalls with its hyperparameters)"
+    )
     parser.add_argument("--timesteps", type=int, default=300_000, help="agent-steps")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-episodes", type=int, default=100)

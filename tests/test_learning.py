@@ -1,11 +1,16 @@
 """Slow learning checks (``make test-slow``): SAEIR_PPO beats a random policy.
 
-- Sparse Cooperative Navigation (the issue's learning check): BUDGET agent-steps, 16 games, the package defaults
-  (the paper's navigation settings), seed 0; about 7-9 minutes on one core. The paper trains 20M env steps (60M
-  agent-steps). **This check does not pass yet** at budgets this machine can afford (see docs/results.md): it is kept
-  as the open target, not weakened.
-- Dense mpe2 ``simple_spread`` (a sanity check that the learner itself works): DENSE_BUDGET agent-steps, same
-  defaults, about 6 minutes on one core.
+- Sparse Cooperative Navigation (the issue's learning check): BUDGET agent-steps with 128 games (the paper's
+  rollout threads; with 16 games the paper's learning rate and epochs collapse the policy entropy early), the
+  package defaults, seed 0; about 15 minutes on one core. The paper trains 20M env steps (60M agent-steps).
+  Parametrized over the task's collision penalty:
+
+  * ``task-default`` (penalty 1, the task as defined): **does not pass yet** at budgets this machine affords
+    (docs/results.md); kept as the open target, not weakened;
+  * ``no-collision-penalty`` (``collision_penalty=0``, same everything else): passes; it shows that the
+    learner does learn the sparse cover reward and that the penalty is what blocks it.
+- Dense mpe2 ``simple_spread`` (a sanity check that the learner itself works): DENSE_BUDGET agent-steps, 16 games,
+  same defaults, about 6 minutes on one core.
 """
 
 import numpy as np
@@ -15,7 +20,8 @@ from mpe2 import simple_spread_v3
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.evaluation import evaluate_multiagent_policy
 
-BUDGET = 500_000
+BUDGET = 1_000_000
+N_GAMES = 128
 DENSE_BUDGET = 300_000
 EVAL_EPISODES = 200
 
@@ -31,22 +37,25 @@ class RandomPolicy:
         return self.rng.integers(0, self.action_space.n, size=len(observation)), None
 
 
-def eval_env():
-    return make_multiagent_vec_env("cn-sparse-n3", n_games=10, seed=12_345)
+def eval_env(**task_kwargs):
+    return make_multiagent_vec_env("cn-sparse-n3", n_games=10, seed=12_345, **task_kwargs)
 
 
 @pytest.mark.slow
-def test_saeir_ppo_beats_random_coverage():
-    env = make_multiagent_vec_env("cn-sparse-n3", n_games=16, seed=0)
+@pytest.mark.parametrize("collision_penalty", [1.0, 0.0], ids=["task-default", "no-collision-penalty"])
+def test_saeir_ppo_beats_random_coverage(collision_penalty):
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=N_GAMES, seed=0, collision_penalty=collision_penalty)
     model = SAEIR_PPO("MSHGPolicy", env, seed=0).learn(BUDGET)
-    trained = evaluate_multiagent_policy(model, eval_env(), n_episodes=EVAL_EPISODES, deterministic=False)
-    random = evaluate_multiagent_policy(RandomPolicy(env.action_space), eval_env(), n_episodes=EVAL_EPISODES)
-    print(
-        f"coverage rate (final step): SAEIR_PPO {trained['coverage_rate_mean']:.3f}, random {random['coverage_rate_mean']:.3f}"
+    trained = evaluate_multiagent_policy(
+        model, eval_env(collision_penalty=collision_penalty), n_episodes=EVAL_EPISODES, deterministic=False
+    )
+    random = evaluate_multiagent_policy(
+        RandomPolicy(env.action_space), eval_env(collision_penalty=collision_penalty), n_episodes=EVAL_EPISODES
     )
     print(
-        f"coverage over steps: SAEIR_PPO {trained['coverage_over_steps_mean']:.3f}, "
-        f"random {random['coverage_over_steps_mean']:.3f}"
+        f"collision penalty {collision_penalty}: coverage rate (final step): SAEIR_PPO "
+        f"{trained['coverage_rate_mean']:.3f}, random {random['coverage_rate_mean']:.3f}; coverage over steps: "
+        f"SAEIR_PPO {trained['coverage_over_steps_mean']:.3f}, random {random['coverage_over_steps_mean']:.3f}"
     )
     # "clearly above": at least three times the random rate and 0.05 (absolute) higher
     assert trained["coverage_rate_mean"] >= max(3 * random["coverage_rate_mean"], random["coverage_rate_mean"] + 0.05)

@@ -270,6 +270,15 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def format_steps(value: float, _position: Any = None) -> str:
+    """Axis label for a step count: ``0``, ``250k``, ``1.5M``."""
+    if abs(value) >= 1e6:
+        return f"{value / 1e6:g}M"
+    if abs(value) >= 1e3:
+        return f"{value / 1e3:g}k"
+    return f"{value:g}"
+
+
 def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
     """One panel per task: mean of the main metric over seeds per method, with a ±1 std band; x in env steps."""
     import matplotlib
@@ -290,8 +299,10 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
             mean = np.array([np.mean(by_step[s]) for s in steps])
             std = np.array([np.std(by_step[s]) for s in steps])
             axis.plot(steps, mean, label=algo)
-            axis.fill_between(steps, mean - std, mean + std, alpha=0.2)
+            # rates cannot be negative: the band stops at 0
+            axis.fill_between(steps, np.clip(mean - std, 0.0, None), mean + std, alpha=0.2)
         axis.set_title(task)
+        axis.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
         axis.set_xlabel("env steps")
         axis.set_ylabel(title)
         axis.legend(fontsize=8)
@@ -351,6 +362,7 @@ def plot_system_entropy(run: Path, path: Path) -> None:
     for key in sorted(k for k in rows[0] if k.startswith("rollout/value_entropy_")):
         bottom.plot(*numeric_series(rows, key), label=key.rsplit("_", 1)[1])
     bottom.set_ylabel("value-softmax entropy")
+    bottom.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
     bottom.set_xlabel("agent-steps")
     bottom.legend(fontsize=8)
     figure.tight_layout()

@@ -34,6 +34,10 @@ def test_parse_seeds():
     assert parse_seeds("1,3,7") == [1, 3, 7]
 
 
+def test_format_steps():
+    assert [benchmark.format_steps(x) for x in (0, 500, 250_000, 1_000_000, 1_500_000)] == ["0", "500", "250k", "1M", "1.5M"]
+
+
 def test_csv_table_figure(finished):
     out, _ = finished
     rows = read_csv(out / "runs.csv")

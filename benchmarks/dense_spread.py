@@ -14,30 +14,18 @@ import argparse
 import time
 from typing import Any
 
-import numpy as np
 import torch as th
 from gymnasium import spaces
 from mpe2 import simple_spread_v3
 from stable_baselines3 import PPO
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
-from sb3_saeir.evaluation import evaluate_multiagent_policy
+from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 
 def dense_spread():
     """Dense Cooperative Navigation with 3 agents, 25 steps, discrete actions."""
     return simple_spread_v3.parallel_env(N=3, max_cycles=25, continuous_actions=False)
-
-
-class RandomPolicy:
-    """Uniform actions, with SB3's ``predict`` signature."""
-
-    def __init__(self, n_actions: int, seed: int = 0) -> None:
-        self.n_actions = n_actions
-        self.rng = np.random.default_rng(seed)
-
-    def predict(self, observation, state=None, episode_start=None, deterministic=False):
-        return self.rng.integers(0, self.n_actions, size=len(observation)), None
 
 
 def main() -> None:
@@ -52,7 +40,7 @@ def main() -> None:
         assert isinstance(env.action_space, spaces.Discrete)
         policy: Any
         if algo == "random":
-            policy = RandomPolicy(int(env.action_space.n))
+            policy = RandomMultiAgentPolicy(env.action_space)
         elif algo == "saeir_ppo":
             policy = SAEIR_PPO("MSHGPolicy", env, seed=0).learn(args.timesteps)
         else:

@@ -17,23 +17,11 @@ import json
 import time
 from typing import Any
 
-import numpy as np
 import torch as th
 from stable_baselines3 import PPO
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.evaluation import evaluate_multiagent_policy
-
-
-class RandomPolicy:
-    """Uniformly random actions with SB3's ``predict`` signature."""
-
-    def __init__(self, n_actions: int, seed: int = 0) -> None:
-        self.n_actions = n_actions
-        self.rng = np.random.default_rng(seed)
-
-    def predict(self, observation: np.ndarray, state: Any = None, episode_start: Any = None, deterministic: bool = False):
-        return self.rng.integers(0, self.n_actions, size=len(observation)), None
+from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 
 def run(algo: str, task: str, variant: dict[str, Any], timesteps: int, eval_episodes: int, seed: int) -> dict[str, Any]:
@@ -53,7 +41,7 @@ def run(algo: str, task: str, variant: dict[str, Any], timesteps: int, eval_epis
             coverage_stochastic=round(stochastic["coverage_rate_mean"], 4),
         )
     else:
-        result = evaluate_multiagent_policy(RandomPolicy(int(env.action_space.n), seed), eval_env, n_episodes=eval_episodes)
+        result = evaluate_multiagent_policy(RandomMultiAgentPolicy(env.action_space, seed), eval_env, n_episodes=eval_episodes)
         record.update(
             coverage_stochastic=round(result["coverage_rate_mean"], 4),
             coverage_over_steps_stochastic=round(result["coverage_over_steps_mean"], 4),

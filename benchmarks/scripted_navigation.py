@@ -20,7 +20,7 @@ import numpy as np
 
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, make_multiagent_vec_env
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
-from sb3_saeir.evaluation import evaluate_multiagent_policy
+from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 NOOP, LEFT, RIGHT, DOWN, UP = range(5)  # mpe2 discrete actions
 
@@ -55,16 +55,6 @@ def run_episode(env: SparseCooperativeNavigation, seed: int) -> tuple[dict[str, 
     return infos[env.possible_agents[0]][EPISODE_METRICS_KEY], episode_return
 
 
-class RandomPolicy:
-    """Uniform discrete actions, with SB3's ``predict`` signature."""
-
-    def __init__(self, seed: int = 0) -> None:
-        self.rng = np.random.default_rng(seed)
-
-    def predict(self, observation, state=None, episode_start=None, deterministic=False):
-        return self.rng.integers(0, 5, size=len(observation)), None
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task-n", type=int, default=3, help="agents = landmarks")
@@ -73,9 +63,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.policy == "random":
         env_id = f"cn-sparse-n{args.task_n}"
-        metrics = evaluate_multiagent_policy(
-            RandomPolicy(), make_multiagent_vec_env(env_id, n_games=10, seed=12_345), args.episodes
-        )
+        eval_env = make_multiagent_vec_env(env_id, n_games=10, seed=12_345)
+        metrics = evaluate_multiagent_policy(RandomMultiAgentPolicy(eval_env.action_space), eval_env, args.episodes)
         for key, value in metrics.items():
             if key.endswith("_mean"):
                 print(f"{key[: -len('_mean')]}: {value:.3f}")

@@ -2,14 +2,45 @@
 
 from __future__ import annotations
 
+import copy
 import os
 from typing import Any, Literal, overload
 
 import numpy as np
+from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback, EventCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.vec_env import is_multiagent_vec_env
+
+
+class RandomMultiAgentPolicy:
+    """
+    Uniformly random actions for every agent slot, with SB3's ``predict`` signature: the random-policy reference
+    for :func:`evaluate_multiagent_policy` (e.g. the coverage rate a policy must beat).
+
+    :param action_space: one agent's action space (the vector env's ``action_space``)
+    :param seed: seed of the action draws
+    """
+
+    def __init__(self, action_space: spaces.Space, seed: int = 0) -> None:
+        self.action_space = copy.deepcopy(action_space)  # seeded here without touching the env's space
+        self.action_space.seed(seed)
+        self.rng = np.random.default_rng(seed)
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, None]:
+        """One random action per row of ``observation`` (``deterministic`` is ignored)."""
+        n_slots = len(observation)
+        if isinstance(self.action_space, spaces.Discrete):
+            low = int(self.action_space.start)
+            return low + self.rng.integers(0, int(self.action_space.n), size=n_slots), None
+        return np.stack([self.action_space.sample() for _ in range(n_slots)]), None
 
 
 @overload

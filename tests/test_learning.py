@@ -13,28 +13,16 @@
   same defaults, about 6 minutes on one core.
 """
 
-import numpy as np
 import pytest
 from mpe2 import simple_spread_v3
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
-from sb3_saeir.evaluation import evaluate_multiagent_policy
+from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 BUDGET = 1_000_000
 N_GAMES = 128
 DENSE_BUDGET = 300_000
 EVAL_EPISODES = 200
-
-
-class RandomPolicy:
-    """Uniformly random actions, with SB3's predict signature."""
-
-    def __init__(self, action_space, seed=0):
-        self.action_space = action_space
-        self.rng = np.random.default_rng(seed)
-
-    def predict(self, observation, state=None, episode_start=None, deterministic=False):
-        return self.rng.integers(0, self.action_space.n, size=len(observation)), None
 
 
 def eval_env(**task_kwargs):
@@ -50,7 +38,7 @@ def test_saeir_ppo_beats_random_coverage(collision_penalty):
         model, eval_env(collision_penalty=collision_penalty), n_episodes=EVAL_EPISODES, deterministic=False
     )
     random = evaluate_multiagent_policy(
-        RandomPolicy(env.action_space), eval_env(collision_penalty=collision_penalty), n_episodes=EVAL_EPISODES
+        RandomMultiAgentPolicy(env.action_space), eval_env(collision_penalty=collision_penalty), n_episodes=EVAL_EPISODES
     )
     print(
         f"collision penalty {collision_penalty}: coverage rate (final step): SAEIR_PPO "
@@ -74,7 +62,7 @@ def test_saeir_ppo_learns_dense_spread():
     env = make_multiagent_vec_env(dense_spread, n_games=16, seed=0)
     model = SAEIR_PPO("MSHGPolicy", env, seed=0).learn(DENSE_BUDGET)
     trained = evaluate_multiagent_policy(model, dense_eval_env(), n_episodes=100)
-    random = evaluate_multiagent_policy(RandomPolicy(env.action_space), dense_eval_env(), n_episodes=100)
+    random = evaluate_multiagent_policy(RandomMultiAgentPolicy(env.action_space), dense_eval_env(), n_episodes=100)
     print(f"dense simple_spread return: SAEIR_PPO {trained['ep_rew_mean']:.2f}, random {random['ep_rew_mean']:.2f}")
     # measured at this budget: SAEIR_PPO -19.98, random -25.62 (100 episodes); require a 3-point margin
     assert trained["ep_rew_mean"] >= random["ep_rew_mean"] + 3.0

@@ -1,0 +1,140 @@
+"""Golden tests: seeded two-iteration runs of every machinery path, against arrays saved by an earlier version.
+
+They guard refactors: a change that alters what the algorithms compute (rollout, intrinsic rewards, GAE, the update)
+changes the buffer's advantages and returns or the parameters after two updates, and fails here. A change that only
+reorders float sums stays within the stated tolerance.
+
+The arrays in ``tests/data/golden_*.npz`` and the model zips ``tests/data/golden_*.zip`` were written by this file
+run as a script (``python tests/test_golden.py``) on version 0.1.0a0 (commit 54974f9, before the core redesign).
+Do not regenerate them to make a test pass: a difference is a behaviour change to explain.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+from typing import Any
+
+import numpy as np
+import pytest
+import torch as th
+
+from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.intrinsic import ElignCallback, RNDCallback
+
+DATA = pathlib.Path(__file__).parent / "data"
+N_GAMES = 2
+N_STEPS = 25  # the paper's rollout length (a padded last chunk of 5 steps with data_chunk_length 10)
+ITERATIONS = 2
+SEED = 3
+TINY_POLICY = {"hidden_size": 16}
+# Bit-identical is expected; 1e-6 (relative 1e-5) leaves room for a reordering of float sums.
+ATOL, RTOL = 1e-6, 1e-5
+
+METHODS: dict[str, dict[str, Any]] = {
+    "saeir_ppo": {"algo": SAEIR_PPO, "policy": "MSHGPolicy", "kwargs": {}, "callback": None},
+    "mappo": {"algo": MAPPO, "policy": "MAPPOPolicy", "kwargs": {}, "callback": None},
+    "rnd": {"algo": MAPPO, "policy": "MAPPOPolicy", "kwargs": {}, "callback": RNDCallback},
+    "elign": {"algo": MAPPO, "policy": "MAPPOPolicy", "kwargs": {}, "callback": ElignCallback},
+}
+
+
+def golden_env() -> Any:
+    """The navigation task the golden arrays were produced on (mpe2's world through SuperSuit, 2 games)."""
+    return make_multiagent_vec_env("cn-sparse-n3", n_games=N_GAMES, seed=SEED)
+
+
+def parameter_checksums(model: Any) -> dict[str, np.ndarray]:
+    """Per parameter tensor: sum, sum of squares and a dot product with fixed pseudo-random weights."""
+    sums = {}
+    for name, param in model.policy.state_dict().items():
+        values = param.detach().cpu().double().numpy().reshape(-1)
+        weights = np.random.default_rng(len(values)).normal(size=len(values))
+        sums[name] = np.array([values.sum(), (values**2).sum(), values @ weights])
+    return sums
+
+
+def golden_run(method: str) -> tuple[Any, dict[str, np.ndarray]]:
+    """Train ``method`` for two iterations from a fixed seed; return the model and the arrays to compare."""
+    th.manual_seed(SEED)
+    spec = METHODS[method]
+    env = golden_env()
+    model = spec["algo"](spec["policy"], env, n_steps=N_STEPS, seed=SEED, policy_kwargs=dict(TINY_POLICY), **spec["kwargs"])
+    callback = spec["callback"]() if spec["callback"] is not None else None
+    model.learn(ITERATIONS * N_STEPS * env.num_envs, callback=callback)
+    buffer = model.rollout_buffer
+    arrays = {
+        "advantages": np.array(buffer.advantages),
+        "returns": np.array(buffer.returns),
+        "values": np.array(buffer.values),
+        "rewards": np.array(buffer.rewards),
+    }
+    arrays.update({f"param/{name}": value for name, value in parameter_checksums(model).items()})
+    return model, arrays
+
+
+def evaluation_observations() -> np.ndarray:
+    """25 steps of observations from a fresh seeded env (random actions), ``(25, n_envs, obs_dim)``."""
+    env = golden_env()
+    rng = np.random.default_rng(SEED)
+    observations = [env.reset()]
+    for _ in range(N_STEPS - 1):
+        obs, _, _, _ = env.step(rng.integers(0, 5, size=env.num_envs))
+        observations.append(obs)
+    env.close()
+    return np.stack(observations)
+
+
+def deterministic_actions(model: Any, observations: np.ndarray) -> np.ndarray:
+    """Deterministic actions of ``model`` on a sequence of observations, GRU states carried through."""
+    states, actions = None, []
+    starts = np.ones(observations.shape[1], dtype=bool)
+    for obs in observations:
+        action, states = model.predict(obs, state=states, episode_start=starts, deterministic=True)
+        starts = np.zeros_like(starts)
+        actions.append(action)
+    return np.stack(actions)
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_two_iterations_match_golden_arrays(method):
+    path = DATA / f"golden_{method}.npz"
+    expected = np.load(path)
+    model, arrays = golden_run(method)
+    model.env.close()
+    assert sorted(arrays) == sorted(expected.files), "the set of parameters changed (renamed or new tensors)"
+    for key in expected.files:
+        np.testing.assert_allclose(arrays[key], expected[key], atol=ATOL, rtol=RTOL, err_msg=f"{method}: {key}")
+
+
+@pytest.mark.parametrize("method, algo", [("saeir_ppo", SAEIR_PPO), ("mappo", MAPPO)])
+def test_old_model_zip_loads_with_identical_actions(method, algo):
+    model = algo.load(DATA / f"golden_{method}.zip", device="cpu")
+    expected = np.load(DATA / f"golden_{method}_actions.npz")
+    actions = deterministic_actions(model, expected["observations"])
+    np.testing.assert_array_equal(actions, expected["actions"])
+
+
+def write_golden_data() -> None:
+    """Write the golden arrays and model zips (run once, on the version the data documents)."""
+    th.set_num_threads(1)
+    DATA.mkdir(exist_ok=True)
+    observations = evaluation_observations()
+    for method in sorted(METHODS):
+        model, arrays = golden_run(method)
+        np.savez_compressed(DATA / f"golden_{method}.npz", **arrays)
+        if method in ("saeir_ppo", "mappo"):
+            model.save(DATA / f"golden_{method}.zip")
+            np.savez_compressed(
+                DATA / f"golden_{method}_actions.npz",
+                observations=observations,
+                actions=deterministic_actions(model, observations),
+            )
+        model.env.close()
+        print(f"wrote golden data for {method}")
+
+
+if __name__ == "__main__":
+    if "--write" not in sys.argv:
+        sys.exit("Usage: python tests/test_golden.py --write   (overwrites tests/data/golden_*; see the module docstring)")
+    write_golden_data()

@@ -23,9 +23,68 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm
 
-SCALES = ("team", "group", "individual")
+# SB3 ActorCriticPolicy arguments these policies cannot honour, with what to use instead.
+_UNSUPPORTED_SB3_ARGUMENTS = {
+    "net_arch": "the networks follow the paper's layout; set their width with hidden_size",
+    "features_extractor_class": "observations go to the actor and critics as flat vectors; flatten them in the env "
+    "(supersuit.flatten_v0)",
+    "features_extractor_kwargs": "features extractors are not used; flatten observations in the env",
+    "use_sde": "gSDE is not supported; continuous actions use a diagonal Gaussian (log_std_init sets its start)",
+}
+# SB3 arguments accepted when their value does nothing here (SB3 passes them when it rebuilds a saved policy).
+_SB3_NOOP_VALUES: dict[str, tuple[Any, ...]] = {
+    "net_arch": (None,),
+    "features_extractor_class": (None, "FlattenExtractor"),
+    "features_extractor_kwargs": (None,),
+    "use_sde": (False,),
+    "squash_output": (None, False),
+    "full_std": (None, True),
+    "use_expln": (None, False),
+    "normalize_images": (None, True, False),
+    "share_features_extractor": (True,),
+}
+
+
+def _is_noop(key: str, value: Any) -> bool:
+    if key in ("net_arch", "features_extractor_kwargs") and isinstance(value, (dict, list)) and not value:
+        return True
+    if key == "features_extractor_class" and isinstance(value, type):
+        value = value.__name__
+    return any(value is accepted or (type(value) is type(accepted) and value == accepted) for accepted in _SB3_NOOP_VALUES[key])
+
+
+def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_init: bool) -> None:
+    """Reject SB3 policy arguments that would be silently ignored, naming the argument to use instead.
+
+    :param policy_name: class name for the message
+    :param sb3_kwargs: the extra keyword arguments the policy received
+    :param ortho_init: the ``ortho_init`` argument (only ``True`` is supported)
+    :raises ValueError: for an unknown key, ``ortho_init=False``, or an SB3 argument with a value that would do nothing
+    """
+    if not ortho_init:
+        raise ValueError(
+            f"{policy_name}: ortho_init=False is not supported (every layer uses the paper's orthogonal "
+            "initialisation); remove the argument."
+        )
+    for key, value in sb3_kwargs.items():
+        if key not in _SB3_NOOP_VALUES:
+            raise ValueError(
+                f"{policy_name}: unknown policy argument {key!r}. Valid arguments: hidden_size, activation_fn, "
+                "recurrent_actor, normalize_values, value_norm_beta, critic_gumbel_noise, log_std_init, "
+                "optimizer_class, optimizer_kwargs, and the critic's own options (see the policy's docstring)."
+            )
+        if _is_noop(key, value):
+            continue
+        if key == "share_features_extractor":
+            raise ValueError(
+                f"{policy_name}: share_features_extractor=False is not supported (the actor and every critic have "
+                "their own networks and there is no features extractor to share); remove the argument."
+            )
+        hint = _UNSUPPORTED_SB3_ARGUMENTS.get(key, "remove the argument")
+        raise ValueError(f"{policy_name}: policy argument {key}={value!r} is not supported: {hint}.")
 
 
 class MultiAgentStates(NamedTuple):
@@ -58,10 +117,13 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     :param value_norm_beta: ValueNorm's EMA coefficient
     :param critic_gumbel_noise: draw Gumbel noise in the hypergraph critics at every forward pass (authors' code);
         ``False`` uses the plain softmax (deterministic critics)
-    :param ortho_init: orthogonal initialisation (always on for the networks of this module; kept for SB3 compatibility)
+    :param log_std_init: initial log standard deviation of the Gaussian action head (continuous actions)
+    :param ortho_init: orthogonal initialisation; only ``True`` (the paper's) is supported, ``False`` raises
     :param optimizer_class: optimizer class
     :param optimizer_kwargs: optimizer kwargs (default ``eps=1e-5``, as MAPPO)
-    :param kwargs: passed to :class:`~stable_baselines3.common.policies.ActorCriticPolicy`
+    :param sb3_kwargs: SB3 ``ActorCriticPolicy`` arguments, accepted only with their default value (SB3 passes them
+        when it rebuilds a saved policy); ``net_arch``, ``features_extractor_class``, ``use_sde`` or
+        ``share_features_extractor=False`` raise a ``ValueError`` naming what to use instead, as does any unknown key
     """
 
     def __init__(
@@ -76,11 +138,13 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         normalize_values: bool = True,
         value_norm_beta: float = 0.99999,
         critic_gumbel_noise: bool = True,
+        log_std_init: float = 0.0,
         ortho_init: bool = True,
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
-        **kwargs: Any,
+        **sb3_kwargs: Any,
     ) -> None:
+        check_sb3_policy_kwargs(type(self).__name__, sb3_kwargs, ortho_init)
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
             raise ValueError(
                 f"{type(self).__name__} needs flat Box observations per agent, got {observation_space}. "
@@ -96,17 +160,16 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         self.critic_gumbel_noise = critic_gumbel_noise
         if optimizer_kwargs is None:
             optimizer_kwargs = {"eps": 1e-5, "foreach": True}
-        kwargs.pop("net_arch", None)
         super().__init__(
             observation_space,
             action_space,
             lr_schedule,
             activation_fn=activation_fn,
+            log_std_init=log_std_init,
             ortho_init=ortho_init,
             optimizer_class=optimizer_class,
             optimizer_kwargs=optimizer_kwargs,
             share_features_extractor=True,
-            **kwargs,
         )
 
     # ------------------------------------------------------------------------------------------------ construction

@@ -40,8 +40,11 @@ METHODS: dict[str, dict[str, Any]] = {
 
 
 def golden_env() -> Any:
-    """The navigation task the golden arrays were produced on (mpe2's world through SuperSuit, 2 games)."""
-    return make_multiagent_vec_env("cn-sparse-n3", n_games=N_GAMES, seed=SEED)
+    """The navigation task the golden arrays were produced on (mpe2's world, then through SuperSuit, 2 games).
+
+    The native engine's ``world="mpe2"`` gives mpe2's streams bit for bit (tests/test_navigation_engine.py).
+    """
+    return make_multiagent_vec_env("cn-sparse-n3", n_games=N_GAMES, seed=SEED, world="mpe2")
 
 
 def parameter_checksums(model: Any) -> dict[str, np.ndarray]:
@@ -67,7 +70,8 @@ def golden_run(method: str) -> tuple[Any, dict[str, np.ndarray]]:
         "advantages": np.array(buffer.advantages),
         "returns": np.array(buffer.returns),
         "values": np.array(buffer.values),
-        "rewards": np.array(buffer.rewards),
+        # (T, E) env rewards; since 0.2.0 the buffer holds them per critic scale, (T, E, K), equal across scales here
+        "rewards": np.array(buffer.rewards if buffer.rewards.ndim == 2 else buffer.rewards[..., 0]),
     }
     arrays.update({f"param/{name}": value for name, value in parameter_checksums(model).items()})
     return model, arrays

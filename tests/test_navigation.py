@@ -1,4 +1,5 @@
-"""Sparse Cooperative Navigation: API compliance and the reward / coverage formulas on hand-placed entities."""
+"""Sparse Cooperative Navigation (the ParallelEnv face): API compliance and the reward / coverage formulas on hand-placed
+entities."""
 
 import numpy as np
 import pytest
@@ -10,8 +11,9 @@ from sb3_saeir.envs.navigation import SparseCooperativeNavigation, any_collision
 
 
 @pytest.mark.parametrize("n_agents", [3, 4])
-def test_parallel_api(n_agents):
-    parallel_api_test(SparseCooperativeNavigation(N=n_agents), num_cycles=60)
+@pytest.mark.parametrize("world", ["mpe", "mpe2"])
+def test_parallel_api(n_agents, world):
+    parallel_api_test(SparseCooperativeNavigation(N=n_agents, world=world), num_cycles=60)
 
 
 def test_registered_tasks():
@@ -22,11 +24,13 @@ def test_registered_tasks():
 
 def place(env, agents, landmarks):
     """Put agents and landmarks at given positions (velocities zero)."""
-    for agent, pos in zip(env.world.agents, agents):
-        agent.state.p_pos = np.array(pos, dtype=np.float64)
-        agent.state.p_vel = np.zeros(2)
-    for landmark, pos in zip(env.world.landmarks, landmarks):
-        landmark.state.p_pos = np.array(pos, dtype=np.float64)
+    env.place(agents, landmarks)
+
+
+# The hand-placed tests below use mpe2's world: a step moves positions with the old (zero) velocity, so placed agents
+# stay where they were put (in the original MPE world a contact force pushes overlapping agents apart within the step;
+# tests/test_navigation_engine.py covers both worlds).
+MPE2 = {"world": "mpe2"}
 
 
 NO_OP = 0
@@ -61,7 +65,7 @@ def test_cover_and_collision_helpers():
     ],
 )
 def test_sparse_reward_hand_placed(agents, landmarks, expected):
-    env = SparseCooperativeNavigation(N=3)
+    env = SparseCooperativeNavigation(N=3, **MPE2)
     env.reset(seed=0)
     # Entities are placed before a no-op step; during it only contact forces move agents (by millimetres), so the
     # expected rewards hold for the post-step state, which is what the env rewards.
@@ -77,7 +81,7 @@ def test_sparse_reward_hand_placed(agents, landmarks, expected):
 
 
 def test_episode_metrics():
-    env = SparseCooperativeNavigation(N=3, max_cycles=4)
+    env = SparseCooperativeNavigation(N=3, max_cycles=4, **MPE2)
     env.reset(seed=1)
     landmark_positions = [[0.0, 0.0], [0.6, 0.0], [-0.6, 0.5]]
     covered_by_step = []
@@ -112,7 +116,7 @@ def test_cover_radius_and_collision_penalty_options():
     landmarks = [[0.0, 0.15], [0.9, 0.9], [-0.9, 0.9]]
     rewards = {}
     for kwargs in ({}, {"cover_radius": 0.2}, {"cover_radius": 0.2, "collision_penalty": 0.5}):
-        env = SparseCooperativeNavigation(N=3, **kwargs)
+        env = SparseCooperativeNavigation(N=3, **kwargs, **MPE2)
         env.reset(seed=0)
         place(env, agents, landmarks)
         _, step_rewards, _, _, infos = step_noop(env)
@@ -128,7 +132,13 @@ def test_cover_radius_and_collision_penalty_options():
 
 
 @pytest.mark.parametrize(
-    "kwargs, match", [({"cover_radius": 0.0}, "cover_radius"), ({"collision_penalty": -1}, "collision_penalty")]
+    "kwargs, match",
+    [
+        ({"cover_radius": 0.0}, "cover_radius"),
+        ({"collision_penalty": -1}, "collision_penalty"),
+        ({"world": "mpe3"}, "world"),
+        ({"reward": "dense"}, "reward"),
+    ],
 )
 def test_reward_options_are_checked(kwargs, match):
     with pytest.raises(ValueError, match=match):

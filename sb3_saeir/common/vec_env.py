@@ -335,12 +335,17 @@ class MultiAgentVecEnv(VecEnv):
         )
 
 
+# Values of make_multiagent_vec_env's ``backend``.
+VEC_ENV_BACKENDS = (None, "native", "supersuit")
+
+
 def make_multiagent_vec_env(
     task: str | ParallelEnvFactory,
     n_games: int,
     seed: int | None = None,
     num_cpus: int = 0,
     mark_truncation: bool = False,
+    backend: str | None = None,
     **task_kwargs: Any,
 ) -> MultiAgentVecEnv:
     """Create an SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game, one slot per agent.
@@ -359,10 +364,30 @@ def make_multiagent_vec_env(
     :param seed: base seed; game ``g`` is reset with ``seed + g``. ``None``: unseeded (games still differ)
     :param num_cpus: SuperSuit worker processes; 0 keeps every game in this process (fastest on small machines)
     :param mark_truncation: set ``TimeLimit.truncated`` in infos when a game hits its time limit
+    :param backend: ``"native"``: the task's own batched vec env (the navigation tasks have one, see
+        ``docs/tasks.md``; all games in this process); ``"supersuit"``: the games through SuperSuit, as any
+        PettingZoo env; ``None`` (default): native when the task has one and ``num_cpus <= 1``, else SuperSuit
     :param task_kwargs: keyword arguments for the task constructor (e.g. ``N=4``, ``render_mode="rgb_array"``)
     :return: the vector env; ``env.n_agents``, ``env.n_games`` and ``env.possible_agents`` describe the layout
     """
-    from sb3_saeir.envs.registry import get_task_factory
+    from sb3_saeir.envs.registry import get_native_vec_env_factory, get_task_factory
+
+    if backend not in VEC_ENV_BACKENDS:
+        raise ValueError(f"backend must be one of {VEC_ENV_BACKENDS[1:]} or None (the task's default), got {backend!r}.")
+    if backend != "supersuit" and (isinstance(task, str) or callable(task)):
+        native = get_native_vec_env_factory(task)
+        if native is None and backend == "native":
+            raise ValueError(f"Task {task!r} has no native vec env; use backend='supersuit' (or None).")
+        if native is not None and backend == "native" and num_cpus > 1:
+            raise ValueError(
+                f"backend='native' steps every game in this process; num_cpus={num_cpus} (worker processes) needs "
+                "backend='supersuit'."
+            )
+        if native is not None and (backend == "native" or num_cpus <= 1):
+            native_env: MultiAgentVecEnv = native(n_games, mark_truncation=mark_truncation, **task_kwargs)
+            if seed is not None:
+                native_env.seed(seed)
+            return native_env
 
     if isinstance(task, str):
         factory = get_task_factory(task)

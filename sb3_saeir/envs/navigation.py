@@ -1,23 +1,27 @@
 """Sparse Cooperative Navigation: the SAEIR paper's sparse-reward variant of MPE ``simple_spread``.
 
-The paper's supplement: "N agents, N landmarks ... reward +l when l landmarks are reached, -1 when any agents
-collide, the collision penalty applied at most once per time step"; metric "coverage rate". The authors did not
-release this scenario; the definition below is this package's (see the README, "Tasks").
+The supplement's words: "The agents get +l reward when l landmarks are reached and get a reward of -1 when any agents
+collide with each other. The agents are only penalized by collision once at every time step." The authors did not
+release their scenario; this package's definition, its two readings of the reward (``reward="occupancy"``, the
+literal one and the default, and ``reward="reach"``) and its two worlds (``world="mpe"``, the original MPE the paper
+used and the default, and ``world="mpe2"``) are described in ``docs/tasks.md`` and the README, "Tasks".
 
-Per step, every agent receives the same team reward
+Per step every agent of a game receives the same team reward. With ``reward="occupancy"``
 
 .. math::
 
     r_t = \\#\\{l : \\min_a \\lVert p_a - p_l \\rVert < 0.1\\}
           - \\mathbb{1}[\\exists a \\neq b : \\lVert p_a - p_b \\rVert < s_a + s_b]
 
-(landmark covered: its nearest agent is within 0.1, mpe2's "occupied" threshold; collision: two agents closer than
-the sum of their sizes, 0.15 + 0.15). Per episode: ``coverage_rate`` = covered landmarks at the final step / N,
-``coverage_over_steps`` = covered fraction averaged over the episode's steps, ``collision_steps`` = steps with a
-collision, ``success`` = every landmark covered at the final step.
+and with ``reward="reach"`` the first term counts only the landmarks that became reached at step ``t`` (not reached at
+``t - 1``). Per episode: ``coverage_rate`` = covered landmarks at the final step / N, ``coverage_over_steps`` =
+covered fraction averaged over the episode's steps, ``collision_steps`` = steps with a collision, ``success`` = every
+landmark covered at the final step, ``reach_events`` = landmarks that became reached, summed over the steps.
 
-Everything else is mpe2 ``simple_spread_v3``: agents and landmarks uniform in [-1, 1]^2, 5 discrete actions
-(continuous optional), 18-d observations for N=3 (24-d for N=4), ``max_cycles`` steps (25) then truncation.
+One engine, :class:`~sb3_saeir.envs.navigation_core.NavigationCore` (batched NumPy), has two faces: the PettingZoo
+``ParallelEnv`` :class:`SparseCooperativeNavigation` (one game; it goes through SuperSuit like any user env) and the
+native multi-agent vec env :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` (G games, the fast path that
+``make_multiagent_vec_env`` builds for the navigation tasks).
 """
 
 from __future__ import annotations
@@ -30,8 +34,41 @@ from gymnasium.utils import EzPickle
 from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY
+from sb3_saeir.envs.navigation_core import (
+    AGENT_SIZE,
+    COVER_RADIUS,
+    N_ACTIONS,
+    REWARDS,
+    WORLDS,
+    NavigationCore,
+    observation_dim,
+)
 
-COVER_RADIUS = 0.1
+__all__ = [
+    "COVER_RADIUS",
+    "REWARDS",
+    "WORLDS",
+    "SparseCooperativeNavigation",
+    "any_collision",
+    "count_covered_landmarks",
+    "navigation_spaces",
+    "sparse_navigation_reward",
+]
+
+
+def navigation_spaces(N: int, continuous_actions: bool) -> tuple[spaces.Box, spaces.Space]:
+    """Observation and action space of one agent (mpe2's): ``Box(-inf, inf, (obs_dim,), float32)`` and ``Discrete(5)``
+    or ``Box(0, 1, (5,), float32)``.
+
+    :param N: agents per game
+    :param continuous_actions: continuous actions
+    """
+    shape = (observation_dim(N),)
+    observation_space = spaces.Box(low=-np.float32(np.inf), high=+np.float32(np.inf), shape=shape, dtype=np.float32)
+    action_space: spaces.Space = spaces.Discrete(N_ACTIONS)
+    if continuous_actions:
+        action_space = spaces.Box(low=0.0, high=1.0, shape=(N_ACTIONS,), dtype=np.float32)
+    return observation_space, action_space
 
 
 def count_covered_landmarks(agent_positions: np.ndarray, landmark_positions: np.ndarray, radius: float = COVER_RADIUS) -> int:
@@ -80,21 +117,28 @@ def sparse_navigation_reward(
 
 
 class SparseCooperativeNavigation(ParallelEnv, EzPickle):
-    """Sparse-reward Cooperative Navigation on mpe2 ``simple_spread_v3`` (PettingZoo ``ParallelEnv``).
+    """Sparse-reward Cooperative Navigation, one game, as a PettingZoo ``ParallelEnv``.
 
     :param N: number of agents (and landmarks)
     :param max_cycles: episode length in steps
-    :param continuous_actions: continuous ``Box(0, 1, (5,))`` actions instead of ``Discrete(5)``
-    :param render_mode: ``None``, ``"rgb_array"`` or ``"human"``
-    :param cover_radius: a landmark counts as covered when its nearest agent is closer than this (0.1, the paper's
-        task as this package defines it; a larger radius makes the task easier)
+    :param continuous_actions: continuous ``Box(0, 1, (5,))`` actions (force ``(a2 - a1, a4 - a3)``) instead of
+        ``Discrete(5)`` (no-op, -x, +x, -y, +y)
+    :param render_mode: ``None`` or ``"rgb_array"`` (an RGB picture drawn with NumPy)
+    :param cover_radius: a landmark counts as reached when its nearest agent is closer than this (0.1; a larger radius
+        makes the task easier)
     :param collision_penalty: team penalty for a step in which any two agents collide (1.0; 0 switches it off)
+    :param world: ``"mpe"`` (the original MPE of Lowe et al. 2017, the paper's world; default) or ``"mpe2"`` (mpe2
+        1.1.1's integration order and landmark range; the same seed gives the same episodes as mpe2's
+        ``simple_spread_v3``)
+    :param reward: ``"occupancy"`` (+1 per landmark reached at this step; default) or ``"reach"`` (+1 per landmark
+        that became reached at this step)
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["human", "rgb_array"],
+        "render_modes": ["rgb_array"],
         "name": "cn_sparse_v0",
         "is_parallelizable": True,
+        "render_fps": 10,
     }
 
     def __init__(
@@ -105,6 +149,8 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
         render_mode: str | None = None,
         cover_radius: float = COVER_RADIUS,
         collision_penalty: float = 1.0,
+        world: str = "mpe",
+        reward: str = "occupancy",
     ) -> None:
         EzPickle.__init__(
             self,
@@ -114,90 +160,151 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
             render_mode=render_mode,
             cover_radius=cover_radius,
             collision_penalty=collision_penalty,
+            world=world,
+            reward=reward,
         )
-        from mpe2 import simple_spread_v3
-
-        if N < 1:
-            raise ValueError(f"N must be >= 1, got {N}.")
-        if cover_radius <= 0:
-            raise ValueError(f"cover_radius must be positive, got {cover_radius}.")
-        if collision_penalty < 0:
-            raise ValueError(f"collision_penalty must be >= 0 (it is subtracted), got {collision_penalty}.")
-        self.cover_radius = float(cover_radius)
-        self.collision_penalty = float(collision_penalty)
-        self.n_landmarks = N
-        self.max_cycles = max_cycles
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}.")
+        self.core = NavigationCore(
+            1,
+            N=N,
+            max_cycles=max_cycles,
+            continuous_actions=continuous_actions,
+            world=world,
+            reward=reward,
+            cover_radius=cover_radius,
+            collision_penalty=collision_penalty,
+        )
+        self.N = int(N)
+        self.n_landmarks = self.N
+        self.world = self.core.world
+        self.reward = self.core.reward
+        self.continuous_actions = bool(continuous_actions)
         self.render_mode = render_mode
-        # local_ratio=0: mpe2's dense reward is ignored anyway, the sparse reward replaces it.
-        self._env = simple_spread_v3.parallel_env(
-            N=N, local_ratio=0.0, max_cycles=max_cycles, continuous_actions=continuous_actions, render_mode=render_mode
-        )
-        self.possible_agents = list(self._env.possible_agents)
-        self.state_space = self._env.state_space
+        self.possible_agents = [f"agent_{i}" for i in range(self.N)]
         self.agents: list[str] = []
-        self._covered_sum = 0.0
-        self._collision_steps = 0
-        self._steps = 0
+        self._observation_space, self._action_space = navigation_spaces(self.N, self.continuous_actions)
+        self.state_space = spaces.Box(
+            low=-np.float32(np.inf), high=+np.float32(np.inf), shape=(self.N * self.core.obs_dim,), dtype=np.float32
+        )
+        self._observations = np.zeros((self.N, self.core.obs_dim), dtype=np.float32)
+
+    # Per-game parameters live in the core (so that changing them changes the game).
+    @property
+    def max_cycles(self) -> int:
+        """Episode length in steps."""
+        return int(self.core.max_cycles[0])
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        self.core.max_cycles[0] = int(value)
+
+    @property
+    def cover_radius(self) -> float:
+        """Cover radius of a landmark."""
+        return float(self.core.cover_radius[0])
+
+    @cover_radius.setter
+    def cover_radius(self, value: float) -> None:
+        self.core.cover_radius[0] = float(value)
+
+    @property
+    def collision_penalty(self) -> float:
+        """Team penalty of a step with a collision."""
+        return float(self.core.collision_penalty[0])
+
+    @collision_penalty.setter
+    def collision_penalty(self, value: float) -> None:
+        self.core.collision_penalty[0] = float(value)
 
     # PettingZoo API -----------------------------------------------------------------
     def observation_space(self, agent: str) -> spaces.Space:
-        return self._env.observation_space(agent)
+        return self._observation_space
 
     def action_space(self, agent: str) -> spaces.Space:
-        return self._env.action_space(agent)
+        return self._action_space
 
-    @property
-    def world(self) -> Any:
-        """The mpe2 world (agents' and landmarks' physical state)."""
-        return self._env.unwrapped.world
+    def _observation_dict(self) -> dict[str, np.ndarray]:
+        return {agent: self._observations[i] for i, agent in enumerate(self.possible_agents)}
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, np.ndarray], dict[str, dict]]:
-        observations, _infos = self._env.reset(seed=seed, options=options)
-        self.agents = list(self._env.agents)
-        self._covered_sum = 0.0
-        self._collision_steps = 0
-        self._steps = 0
-        return observations, {agent: {} for agent in self.agents}
+        """Start an episode: agents and landmarks drawn from the game's generator (re-created from ``seed`` if given)."""
+        if seed is not None:
+            self.core.seed([seed])
+        self.core.reset_games()
+        self._observations = self.core.observations()[0]
+        self.agents = list(self.possible_agents)
+        return self._observation_dict(), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
-        observations, _, terminations, truncations, _ = self._env.step(actions)
-        agent_positions, landmark_positions, agent_sizes = self.positions()
-        covered = count_covered_landmarks(agent_positions, landmark_positions, radius=self.cover_radius)
-        collided = any_collision(agent_positions, agent_sizes)
-        reward = float(covered - self.collision_penalty * int(collided))
-        self._steps += 1
-        self._covered_sum += covered / self.n_landmarks
-        self._collision_steps += int(collided)
-
-        rewards = {agent: reward for agent in self.possible_agents}
+        """One step; agents missing from ``actions`` take the no-op (zero force)."""
+        if not self.agents:
+            raise RuntimeError("step() called on a finished episode: call reset() first.")
+        if self.continuous_actions:
+            zero = np.zeros(N_ACTIONS, dtype=np.float32)
+            values = [np.asarray(actions.get(agent, zero)) for agent in self.possible_agents]
+            result = self.core.step(np.stack(values)[None])  # (N, 5) -> (1, N, 5)
+        else:
+            result = self.core.step(np.array([[int(actions.get(agent, 0)) for agent in self.possible_agents]]))
+        self._observations = result.observations[0]
+        reward = float(result.rewards[0])
+        covered, collided = int(result.covered[0]), bool(result.collided[0])
+        truncated = bool(result.truncated[0])
+        observations = self._observation_dict()
+        rewards = dict.fromkeys(self.possible_agents, reward)
+        terminations = dict.fromkeys(self.possible_agents, False)
+        truncations = dict.fromkeys(self.possible_agents, truncated)
         infos: dict[str, dict] = {
-            agent: {"covered_landmarks": covered, "collision": collided} for agent in self.possible_agents
+            agent: {"covered_landmarks": covered, "reached_landmarks": int(result.reached[0]), "collision": collided}
+            for agent in self.possible_agents
         }
-        if all(terminations.get(a, False) or truncations.get(a, False) for a in self.possible_agents):
-            metrics = {
-                "coverage_rate": covered / self.n_landmarks,
-                "coverage_over_steps": self._covered_sum / self._steps,
-                "collision_steps": float(self._collision_steps),
-                "success": float(covered == self.n_landmarks),
-            }
+        if truncated:
+            metrics = self.core.episode_metrics(0)
             for agent in self.possible_agents:
                 infos[agent][EPISODE_METRICS_KEY] = dict(metrics)
-        self.agents = list(self._env.agents)
+            self.agents = []
         return observations, rewards, terminations, truncations, infos
 
     def positions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Agent positions (N, 2), landmark positions (L, 2) and agent sizes (N,) of the current state."""
-        world = self.world
-        agent_positions = np.array([a.state.p_pos for a in world.agents])
-        landmark_positions = np.array([lm.state.p_pos for lm in world.landmarks])
-        agent_sizes = np.array([a.size for a in world.agents])
-        return agent_positions, landmark_positions, agent_sizes
+        """Agent positions (N, 2), landmark positions (L, 2) and agent sizes (N,) of the current state (copies)."""
+        return self.core.positions[0].copy(), self.core.landmarks[0].copy(), np.full(self.N, AGENT_SIZE)
+
+    def velocities(self) -> np.ndarray:
+        """Agent velocities (N, 2) of the current state (a copy)."""
+        return self.core.velocities[0].copy()
+
+    def place(self, agent_positions: Any, landmark_positions: Any | None = None, velocities: Any | None = None) -> None:
+        """Put agents (and landmarks) at given positions, velocities zero unless given (for tests and set-ups).
+
+        :param agent_positions: ``(N, 2)``
+        :param landmark_positions: ``(N, 2)``; ``None`` keeps them
+        :param velocities: ``(N, 2)``; ``None`` sets them to zero
+        """
+        self.core.place(0, agent_positions, landmark_positions, velocities)
+        self._observations = self.core.observations()[0]
 
     def state(self) -> np.ndarray:
-        return self._env.state()
+        """Global state: every agent's observation concatenated in ``possible_agents`` order, ``(N * obs_dim,)``."""
+        return self.core.observations()[0].reshape(-1)  # (N, obs_dim) -> (N * obs_dim,)
 
-    def render(self) -> Any:
-        return self._env.render()
+    def render(self) -> np.ndarray | None:
+        """An RGB picture of the game in ``rgb_array`` mode (``None`` without a render mode)."""
+        if self.render_mode != "rgb_array":
+            return None
+        return self.core.render(0)
 
     def close(self) -> None:
-        self._env.close()
+        pass
+
+    @classmethod
+    def native_vec_env(cls, n_games: int, mark_truncation: bool = False, **kwargs: Any) -> Any:
+        """The native batched vec env of ``n_games`` games of this task (what ``make_multiagent_vec_env`` builds).
+
+        :param n_games: number of games
+        :param mark_truncation: see :func:`~sb3_saeir.make_multiagent_vec_env`
+        :param kwargs: this class's constructor keywords
+        :return: a :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv`
+        """
+        from sb3_saeir.envs.navigation_vec_env import NavigationVecEnv
+
+        return NavigationVecEnv(n_games, mark_truncation=mark_truncation, **kwargs)

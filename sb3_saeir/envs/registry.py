@@ -1,4 +1,9 @@
-"""Registry of task ids: a name -> a factory returning one PettingZoo ``ParallelEnv`` (one game)."""
+"""Registry of task ids: a name -> a factory returning one PettingZoo ``ParallelEnv`` (one game).
+
+A task's constructor may also offer a native multi-agent vec env of many games (a classmethod
+``native_vec_env(n_games, mark_truncation=False, **kwargs)``, as the navigation tasks do, see ``docs/tasks.md``);
+:func:`get_native_vec_env_factory` finds it and ``make_multiagent_vec_env`` uses it instead of SuperSuit.
+"""
 
 from __future__ import annotations
 
@@ -69,16 +74,44 @@ def get_task_spec(task_id: str) -> TaskSpec:
     return _TASKS[task_id]
 
 
+# Keyword of ``make_multiagent_vec_env`` that may travel with a task's kwargs (``env_kwargs`` of a config, the rl-zoo3
+# bridge); it selects how games are vectorised and is not passed to the game's constructor.
+VEC_ENV_KEYS = ("backend",)
+
+
 def get_task_factory(task_id: str) -> Callable[..., ParallelEnv]:
-    """A callable building one game of ``task_id``; caller kwargs override the registered defaults."""
+    """A callable building one game of ``task_id``; caller kwargs override the registered defaults (a ``backend``
+    keyword, which selects the vec env, is ignored)."""
     spec = get_task_spec(task_id)
     constructor = spec.load()
 
     def factory(**kwargs: Any) -> ParallelEnv:
-        return constructor(**{**spec.kwargs, **kwargs})
+        game_kwargs = {key: value for key, value in kwargs.items() if key not in VEC_ENV_KEYS}
+        return constructor(**{**spec.kwargs, **game_kwargs})
 
     factory.__name__ = f"make_{task_id.replace('-', '_')}"
     return factory
+
+
+def get_native_vec_env_factory(task: str | Callable[..., Any]) -> Callable[..., Any] | None:
+    """The native vec env builder of a task, or ``None`` when the task has none (it then goes through SuperSuit).
+
+    :param task: a registered task id or a game constructor; a constructor with a ``native_vec_env`` attribute (a
+        classmethod ``native_vec_env(n_games, mark_truncation=False, **kwargs)``) has a native vec env
+    :return: a callable ``(n_games, mark_truncation=..., **kwargs)`` returning the vec env (registered defaults merged
+        with the caller's kwargs)
+    """
+    if isinstance(task, str):
+        spec = get_task_spec(task)
+        native = getattr(spec.load(), "native_vec_env", None)
+        if native is None:
+            return None
+
+        def build(n_games: int, mark_truncation: bool = False, **kwargs: Any) -> Any:
+            return native(n_games, mark_truncation=mark_truncation, **{**spec.kwargs, **kwargs})
+
+        return build
+    return getattr(task, "native_vec_env", None)
 
 
 def make_task(task_id: str, **kwargs: Any) -> ParallelEnv:

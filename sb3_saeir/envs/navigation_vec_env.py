@@ -1,0 +1,293 @@
+"""Native multi-agent vec env of sparse Cooperative Navigation: ``n_games`` games stepped at once by the batched core.
+
+It offers what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` offers over SuperSuit (slot ``game * N + agent``,
+``n_agents`` / ``n_games`` / ``possible_agents``, per-game seeds ``seed + g``, lockstep resets, bool dones,
+``terminal_observation``, one ``episode`` dict per game with the task metrics, ``get_state``, per-game
+``get_attr`` / ``set_attr`` / ``env_method``, ``render()`` of game 0) and gives the same streams as
+:class:`~sb3_saeir.envs.navigation.SparseCooperativeNavigation` through SuperSuit for the same seed, without a Python
+loop over games or agents in the step. The task is described in ``docs/tasks.md``.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+
+from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv
+from sb3_saeir.envs.navigation import SparseCooperativeNavigation, navigation_spaces
+from sb3_saeir.envs.navigation_core import AGENT_SIZE, COVER_RADIUS, NavigationCore
+
+# Per-game parameters: arrays of the core, one value per game.
+_PER_GAME = {"max_cycles": int, "cover_radius": float, "collision_penalty": float}
+
+
+class NavigationGame:
+    """One game of a :class:`NavigationVecEnv`, for ``get_attr`` / ``set_attr`` / ``env_method``.
+
+    Reads and writes the game's own parameters (``max_cycles``, ``cover_radius``, ``collision_penalty``) in the core;
+    other attributes (``N``, ``world``, ``reward``, ``continuous_actions``, ``metadata``, ...) are shared by all games.
+    Setting another attribute stores it on this object only.
+
+    :param vec_env: the vec env
+    :param game: the game's index
+    """
+
+    def __init__(self, vec_env: NavigationVecEnv, game: int) -> None:
+        object.__setattr__(self, "_vec_env", vec_env)
+        object.__setattr__(self, "game", game)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        core = self._vec_env.core
+        if name in _PER_GAME:
+            return _PER_GAME[name](getattr(core, name)[self.game])
+        if name in ("N", "world", "reward", "continuous_actions"):
+            return getattr(core, name)
+        if name == "n_landmarks":
+            return core.N
+        if name in ("metadata", "possible_agents", "render_mode", "state_space"):
+            return getattr(self._vec_env, name)
+        raise AttributeError(f"The navigation game has no attribute {name!r}.")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _PER_GAME:
+            getattr(self._vec_env.core, name)[self.game] = _PER_GAME[name](value)
+        else:
+            object.__setattr__(self, name, value)
+
+    @property
+    def unwrapped(self) -> NavigationGame:
+        return self
+
+    def observation_space(self, agent: str) -> gym.spaces.Space:
+        return self._vec_env.observation_space
+
+    def action_space(self, agent: str) -> gym.spaces.Space:
+        return self._vec_env.action_space
+
+    def state(self) -> np.ndarray:
+        """The game's global state, every agent's observation concatenated, ``(N * obs_dim,)``."""
+        return self._vec_env.core.observations()[self.game].reshape(-1)  # (N, obs_dim) -> (N * obs_dim,)
+
+    def positions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Agent positions (N, 2), landmark positions (L, 2) and agent sizes (N,) (copies)."""
+        core = self._vec_env.core
+        return core.positions[self.game].copy(), core.landmarks[self.game].copy(), np.full(core.N, AGENT_SIZE)
+
+    def render(self) -> np.ndarray:
+        """An RGB picture of the game."""
+        return self._vec_env.core.render(self.game)
+
+
+class NavigationVecEnv(MultiAgentVecEnv):
+    """SB3 ``VecEnv`` of ``n_games`` sparse Cooperative Navigation games, one slot per agent, stepped in NumPy.
+
+    Build it with :func:`~sb3_saeir.make_multiagent_vec_env` (the default backend of the navigation tasks) or
+    directly. All games run in this process (there are no worker processes: ``num_cpus`` is 0).
+
+    :param n_games: number of games G; the vec env has ``G * N`` slots
+    :param N: agents per game (= landmarks)
+    :param max_cycles: episode length in steps
+    :param continuous_actions: ``Box(0, 1, (5,))`` actions instead of ``Discrete(5)``
+    :param render_mode: ``None`` or ``"rgb_array"`` (``render()`` draws game 0)
+    :param cover_radius: a landmark is reached when its nearest agent is closer than this
+    :param collision_penalty: team penalty of a step in which any two agents collide
+    :param world: ``"mpe"`` (original MPE, the paper's world) or ``"mpe2"`` (mpe2 1.1.1)
+    :param reward: ``"occupancy"`` or ``"reach"``
+    :param mark_truncation: set ``infos[i]["TimeLimit.truncated"]`` when a game hits its time limit
+    """
+
+    def __init__(
+        self,
+        n_games: int,
+        N: int = 3,
+        max_cycles: int = 25,
+        continuous_actions: bool = False,
+        render_mode: str | None = None,
+        cover_radius: float = COVER_RADIUS,
+        collision_penalty: float = 1.0,
+        world: str = "mpe",
+        reward: str = "occupancy",
+        mark_truncation: bool = False,
+    ) -> None:
+        if isinstance(n_games, bool) or not isinstance(n_games, (int, np.integer)) or n_games < 1:
+            raise ValueError(f"n_games must be a positive integer (number of game copies), got {n_games!r}.")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}.")
+        self.core = NavigationCore(
+            int(n_games),
+            N=N,
+            max_cycles=max_cycles,
+            continuous_actions=continuous_actions,
+            world=world,
+            reward=reward,
+            cover_radius=cover_radius,
+            collision_penalty=collision_penalty,
+        )
+        self.n_games = int(n_games)
+        self.n_agents = self.core.N
+        self.possible_agents: list[str] = [f"agent_{i}" for i in range(self.n_agents)]
+        self.num_cpus = 0
+        self.mark_truncation = mark_truncation
+        self._probe_render_mode = render_mode
+        self.state_space = gym.spaces.Box(-np.inf, np.inf, (self.n_agents * self.core.obs_dim,), dtype=np.float32)
+        self.games = [NavigationGame(self, g) for g in range(self.n_games)]
+        observation_space, action_space = navigation_spaces(self.n_agents, self.core.continuous_actions)
+        VecEnv.__init__(self, self.n_games * self.n_agents, observation_space, action_space)
+        self.metadata = dict(SparseCooperativeNavigation.metadata)
+        self._game_seed: int | None = None
+        self._actions: np.ndarray | None = None
+        self._episode_returns = np.zeros(self.n_games, dtype=np.float64)
+        self._episode_lengths = np.zeros(self.n_games, dtype=np.int64)
+        self._t_start = time.time()
+        self.episode_count = 0
+        self.core.reset_games()
+
+    # ------------------------------------------------------------------ seeding / reset
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        """Seed all games at the next reset: game ``g`` gets ``seed + g`` (agents of a game share its seed).
+
+        :param seed: base seed; ``None`` draws one
+        :return: the seed of every slot
+        """
+        if seed is None:
+            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
+        self._game_seed = int(seed)
+        self._seeds = [self._game_seed + self.game_of(i) for i in range(self.num_envs)]
+        return self._seeds
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> VecEnvObs:
+        """Reset every game.
+
+        :param seed: optional base seed (game ``g`` gets ``seed + g``); same as calling :meth:`seed` first
+        :param options: ignored (the task has no reset options)
+        :return: the first observations, ``(n_games * n_agents, obs_dim)``
+        """
+        if seed is not None:
+            self.seed(seed)
+        if self._game_seed is not None:
+            self.core.seed([self._game_seed + g for g in range(self.n_games)])
+        self.core.reset_games()
+        self.reset_infos = [{} for _ in range(self.num_envs)]
+        self._game_seed = None
+        self._reset_seeds()
+        self._reset_options()
+        self._episode_returns[:] = 0.0
+        self._episode_lengths[:] = 0
+        return self.core.observations().reshape(self.num_envs, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
+
+    # ------------------------------------------------------------------ stepping
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        if self._actions is None:
+            raise RuntimeError("step_wait() called without step_async().")
+        G, N = self.n_games, self.n_agents
+        # (G * N, 5) -> (G, N, 5) for continuous actions; (G * N,) or (G * N, 1) -> (G, N) for discrete ones
+        actions: np.ndarray = self._actions.reshape(G, N, -1) if self.core.continuous_actions else self._actions.reshape(G, N)
+        self._actions = None
+        result = self.core.step(actions)
+        obs: np.ndarray = result.observations.reshape(G * N, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
+        rewards = np.repeat(result.rewards.astype(np.float32), N)  # (G,) -> (G * N,)
+        dones = np.repeat(result.truncated, N)  # (G,) -> (G * N,)
+        infos: list[dict[str, Any]] = [{} for _ in range(G * N)]
+        # (G * N,) -> (G, N): the team return of a game is its agents' mean reward, as MultiAgentVecEnv records it
+        self._episode_returns += rewards.reshape(G, N).mean(axis=1)
+        self._episode_lengths += 1
+        if result.truncated.any():
+            finished = np.flatnonzero(result.truncated)
+            terminal_obs = obs.copy()
+            for game in finished:
+                metrics = self.core.episode_metrics(int(game))
+                for slot in range(game * N, (game + 1) * N):
+                    infos[slot]["terminal_observation"] = terminal_obs[slot]
+                    infos[slot][EPISODE_METRICS_KEY] = dict(metrics)
+                    if self.mark_truncation:
+                        infos[slot]["TimeLimit.truncated"] = True
+                first = infos[game * N]
+                first["episode"] = {
+                    "r": float(self._episode_returns[game]),
+                    "l": int(self._episode_lengths[game]),
+                    "t": round(time.time() - self._t_start, 6),
+                    **metrics,
+                }
+                first["is_success"] = bool(metrics["success"])
+                self._episode_returns[game] = 0.0
+                self._episode_lengths[game] = 0
+                self.episode_count += 1
+            self.core.reset_games(finished)
+            # (G, N, obs_dim) -> (G * N, obs_dim): the first observations of the new episodes replace the last ones
+            obs = self.core.observations().reshape(G * N, -1)
+        return obs, rewards, dones, infos
+
+    # ------------------------------------------------------------------ SB3 VecEnv API
+    def close(self) -> None:
+        pass
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """Picture of game 0; ``None`` for the other slots."""
+        return [self.core.render(0)] + [None] * (self.num_envs - 1)
+
+    def render(self, mode: str | None = None) -> np.ndarray | None:
+        """Render game 0.
+
+        :param mode: must be ``None`` or the ``render_mode`` given to the task
+        :return: an RGB array of game 0 in ``rgb_array`` mode, else ``None``
+        """
+        if mode is not None and mode != self.render_mode:
+            warnings.warn(
+                f"render(mode={mode!r}) ignored: the render mode is fixed when the task is created "
+                f"(here {self.render_mode!r}); pass render_mode={mode!r} to make_multiagent_vec_env.",
+                stacklevel=2,
+            )
+            return None
+        if self.render_mode is None:
+            warnings.warn("render() called but the task was created without render_mode.", stacklevel=2)
+            return None
+        return self.core.render(0)
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """Attribute of the game each slot belongs to."""
+        slots = list(self._get_indices(indices))
+        if attr_name == "render_mode":
+            return [self._probe_render_mode] * len(slots)
+        if attr_name in ("n_agents", "n_games"):
+            return [getattr(self, attr_name)] * len(slots)
+        return [getattr(self.games[self.game_of(i)], attr_name) for i in slots]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set an attribute on the game of each slot (``max_cycles``, ``cover_radius`` and ``collision_penalty`` change
+        that game's dynamics)."""
+        for g in sorted({self.game_of(i) for i in self._get_indices(indices)}):
+            setattr(self.games[g], attr_name, value)
+
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
+        """Call a method of the game each slot belongs to (once per slot): ``state``, ``positions``, ``render``, ..."""
+        return [
+            getattr(self.games[self.game_of(i)], method_name)(*method_args, **method_kwargs)
+            for i in self._get_indices(indices)
+        ]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        """Games are not gymnasium envs: all ``False``."""
+        return [False] * len(list(self._get_indices(indices)))
+
+    def get_state(self) -> np.ndarray:
+        """Global state of every game, ``(n_games, N * obs_dim)``."""
+        return self.core.observations().reshape(self.n_games, -1)  # (G, N, obs_dim) -> (G, N * obs_dim)
+
+    def __repr__(self) -> str:
+        return (
+            f"NavigationVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
+            f"world={self.core.world!r}, reward={self.core.reward!r})"
+        )

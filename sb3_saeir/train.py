@@ -63,11 +63,8 @@ def valid_keys(algo: str) -> list[str]:
 
 
 def _constructor_parameters(algo: str) -> dict[str, inspect.Parameter]:
-    """Constructor parameters of a method's class and its parent (MAPPO forwards ``**kwargs`` to SAEIR_PPO)."""
-    parameters: dict[str, inspect.Parameter] = {}
-    for cls in reversed(ALGOS[algo].__mro__[:2]):
-        parameters.update(inspect.signature(cls).parameters)
-    return parameters
+    """Constructor parameters of a method's algorithm class (every class spells out its full signature)."""
+    return dict(inspect.signature(ALGOS[algo]).parameters)
 
 
 def _type_ok(value: Any, reference: Any) -> bool:
@@ -104,7 +101,7 @@ def _matches(value: Any, annotation: Any) -> bool:
 
 
 def _annotations(algo: str) -> dict[str, Any]:
-    """Constructor annotations of a method's class and its parent (MAPPO forwards ``**kwargs`` to SAEIR_PPO)."""
+    """Constructor annotations of a method's algorithm class."""
     return {
         name: parameter.annotation
         for name, parameter in _constructor_parameters(algo).items()

@@ -4,6 +4,7 @@ import pytest
 import yaml
 from stable_baselines3 import PPO
 
+from sb3_saeir import MAPPO
 from sb3_saeir.config import ALGOS, build_model, config_dir, load_hyperparams, parse_policy_kwargs
 
 CONFIG_ENTRIES = [
@@ -26,15 +27,15 @@ def test_config_entry_builds(algo, task):
     assert model.learning_rate == params["learning_rate"]
     assert model.n_epochs == params["n_epochs"] and model.n_steps == params["n_steps"]
     assert resolved["n_envs"] == 2
-    if not isinstance(model, PPO) or hasattr(model, "intrinsic_reward"):
-        assert getattr(model, "intrinsic_reward", None) == params.get("intrinsic_reward")
+    if isinstance(model, MAPPO):
+        assert model.intrinsic_reward == params.get("intrinsic_reward")
     env.close()
 
 
 @pytest.mark.parametrize("algo", sorted(ALGOS))
 def test_every_method_trains_two_iterations_from_its_config(algo):
     model, env, callbacks, _ = build_model(algo, "cn-sparse-n3", n_games=2, seed=0)
-    if type(model) is PPO:  # the whole-rollout batch follows the game count
+    if isinstance(model, PPO):  # IPPO: the whole-rollout batch follows the game count
         assert model.batch_size == model.n_steps * env.num_envs
     model.learn(2 * model.n_steps * env.num_envs, callback=callbacks)
     assert model.num_timesteps == 2 * model.n_steps * env.num_envs

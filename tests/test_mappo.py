@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch as th
 from gymnasium import spaces
+from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.policies import MAPPOPolicy, SNMAPPOPolicy
@@ -100,3 +101,34 @@ def test_bad_critic_options():
         RecurrentValueCritic(4, 3, critic_input="global")
     with pytest.raises(ValueError, match="spectral_norm"):
         RecurrentValueCritic(4, 3, spectral_norm=("all",))
+
+
+class RecordEnvRewards(BaseCallback):
+    """Keep the env's rewards and truncation flags of every step of the last rollout."""
+
+    def _on_rollout_start(self):
+        self.rewards, self.truncated = [], []
+
+    def _on_step(self):
+        infos, dones = self.locals["infos"], self.locals["dones"]
+        self.rewards.append(np.array(self.locals["rewards"], dtype=np.float32))
+        self.truncated.append(np.array([d and i.get("TimeLimit.truncated", False) for d, i in zip(dones, infos)]))
+        return True
+
+
+def test_truncation_bootstrap_is_added_to_the_step_rewards_before_gae():
+    """With marked truncation, a truncated step's reward gets gamma * V(final observation) of each scale (here a
+    critic made constant, V = 2.5), every other step keeps the env reward."""
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, mark_truncation=True, max_cycles=4)
+    model = MAPPO("MAPPOPolicy", env, n_steps=10, n_epochs=1, normalize_values=False, seed=0)
+    value_net = model.policy.critics["critic"].value_net
+    with th.no_grad():
+        value_net.weight.zero_()
+        value_net.bias.fill_(2.5)
+    recorder = RecordEnvRewards()
+    model.learn(10 * env.num_envs, callback=recorder)
+    rewards, truncated = np.stack(recorder.rewards), np.stack(recorder.truncated)  # (T, E)
+    assert truncated.any() and not truncated.all()
+    expected = rewards + np.where(truncated, model.gamma * 2.5, 0.0)
+    np.testing.assert_allclose(model.rollout_buffer.rewards[..., 0], expected, atol=1e-6)
+    env.close()

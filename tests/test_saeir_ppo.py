@@ -89,14 +89,14 @@ class CheckBonusInAdvantages(BaseCallback):
         expected_bonus = self.beta * saeir_bonus(buffer.values)  # (T, E, K), from the stored values only
         np.testing.assert_allclose(buffer.intrinsic_rewards, expected_bonus, atol=1e-6)
         # GAE without the bonus must differ by exactly the bonus' discounted sums: recompute both by hand
-        values = buffer.value_denormalizer(buffer.values)
-        last = buffer.value_denormalizer(buffer.last_values)
+        values = self.model.policy.denormalize_values_numpy(buffer.values)
+        last = self.model.policy.denormalize_values_numpy(buffer.last_values)
         gamma, lam = self.model.gamma, self.model.gae_lambda
         gae = np.zeros_like(last)
         for t in reversed(range(buffer.buffer_size)):
             mask = 1.0 - (buffer.last_dones if t == buffer.buffer_size - 1 else buffer.episode_starts[t + 1])
             next_values = last if t == buffer.buffer_size - 1 else values[t + 1]
-            delta = buffer.rewards[t][:, None] + expected_bonus[t] + gamma * next_values * mask[:, None] - values[t]
+            delta = buffer.rewards[t] + expected_bonus[t] + gamma * next_values * mask[:, None] - values[t]
             gae = delta + gamma * lam * mask[:, None] * gae
             np.testing.assert_allclose(buffer.advantages[t], gae, atol=1e-4)
         self.checked += 1
@@ -112,7 +112,8 @@ def test_saeir_bonus_reaches_the_advantages(env):
 def test_explicit_saeir_callback_with_intrinsic_off(env):
     checker = CheckBonusInAdvantages(beta=0.2)
     model = SAEIR_PPO("MSHGPolicy", env, intrinsic_reward=None, seed=0, **TINY)
-    model.learn(10 * env.num_envs, callback=[checker, SAEIRCallback(coef=0.2)])  # reordered: bonus first
+    # the checker comes first: every bonus is in the advantages before any callback's on_rollout_end, whatever the order
+    model.learn(10 * env.num_envs, callback=[checker, SAEIRCallback(coef=0.2)])
     assert checker.checked == 1
 
 

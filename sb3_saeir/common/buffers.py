@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Generator
 from typing import NamedTuple
 
@@ -9,6 +10,16 @@ import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import RolloutBuffer
+
+
+def n_blocks(n_steps: int, n_games: int, data_chunk_length: int) -> int:
+    """Number of (game, chunk) blocks in a rollout: ``n_games * ceil(n_steps / data_chunk_length)``.
+
+    :param n_steps: steps per game in the rollout
+    :param n_games: games
+    :param data_chunk_length: steps per chunk (the last chunk of a game may be shorter, and is padded)
+    """
+    return n_games * -(-n_steps // data_chunk_length)
 
 
 class GroupedRecurrentSamples(NamedTuple):
@@ -43,12 +54,13 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     :class:`~stable_baselines3.common.buffers.RolloutBuffer` it stores one value per critic scale (normalised space),
     the (already scaled) intrinsic reward of every scale, GRU states per step, and per-scale returns and advantages.
 
-    Per-scale GAE (spec §2.4), with :math:`D_K` the scale's ValueNorm denormalisation and
-    :math:`m_{t+1} = 1 - \\text{episode\\_start}_{t+1}`:
+    Per-scale GAE (``docs/method.md``, "GAE per scale"), with :math:`D_K` the scale's ValueNorm denormalisation
+    (passed to :meth:`compute_returns_and_advantage`), :math:`r^K_t` the scale's reward (the env reward plus that
+    scale's truncation bootstrap, stored by :meth:`add`) and :math:`m_{t+1} = 1 - \\text{episode\\_start}_{t+1}`:
 
     .. math::
 
-        \\delta^K_t = r_t + r^{int,K}_t + \\gamma D_K(v^K_{t+1}) m_{t+1} - D_K(v^K_t), \\quad
+        \\delta^K_t = r^K_t + r^{int,K}_t + \\gamma D_K(v^K_{t+1}) m_{t+1} - D_K(v^K_t), \\quad
         A^K_t = \\delta^K_t + \\gamma \\lambda m_{t+1} A^K_{t+1}, \\quad R^K_t = A^K_t + D_K(v^K_t)
 
     Minibatches (:meth:`get`) are blocks of (game, chunk of ``data_chunk_length`` steps) carrying all agents, so a
@@ -96,7 +108,6 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
         self.actor_hidden_size = actor_hidden_size
         self.critic_hidden_size = critic_hidden_size
         self.data_chunk_length = data_chunk_length
-        self.value_denormalizer: Callable[[np.ndarray], np.ndarray] = lambda values: values
         self.last_values: np.ndarray | None = None
         self.last_dones: np.ndarray | None = None
         super().__init__(buffer_size, observation_space, action_space, device, gae_lambda, gamma, n_envs)  # type: ignore[arg-type]
@@ -105,17 +116,18 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     def reset(self) -> None:
         super().reset()
         shape_k = (self.buffer_size, self.n_envs, self.n_scales)
+        self.rewards = np.zeros(shape_k, dtype=np.float32)
         self.values = np.zeros(shape_k, dtype=np.float32)
         self.returns = np.zeros(shape_k, dtype=np.float32)
         self.advantages = np.zeros(shape_k, dtype=np.float32)
         self.intrinsic_rewards = np.zeros(shape_k, dtype=np.float32)
-        self.bootstrap_rewards = np.zeros(shape_k, dtype=np.float32)
         self.actor_states = np.zeros((self.buffer_size, self.n_envs, self.actor_hidden_size), dtype=np.float32)
         self.critic_states = np.zeros(
             (self.buffer_size, self.n_scales, self.n_games, self.n_agents, self.critic_hidden_size), dtype=np.float32
         )
         self.last_values = None
         self.last_dones = None
+        self._denormalize: Callable[[np.ndarray], np.ndarray] | None = None
 
     def add(  # type: ignore[override]
         self,
@@ -131,13 +143,16 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     ) -> None:
         """Store one step.
 
+        :param reward: rewards of every critic scale ``(n_envs, K)`` (the env reward plus the scale's truncation
+            bootstrap), or ``(n_envs,)`` for the same reward at every scale
         :param value: normalised values ``(n_envs, K)``
         :param actor_states: actor GRU states that were the *input* of this step ``(n_envs, H)``
         :param critic_states: critic GRU states that were the input of this step ``(K, G, N, H)``
         """
         self.observations[self.pos] = np.asarray(obs).reshape((self.n_envs, *self.obs_shape))
         self.actions[self.pos] = np.asarray(action).reshape((self.n_envs, self.action_dim))
-        self.rewards[self.pos] = np.asarray(reward)
+        # (E,) broadcasts to every scale; (E, K) is per scale
+        self.rewards[self.pos] = np.asarray(reward, dtype=np.float32).reshape(self.n_envs, -1)
         self.episode_starts[self.pos] = np.asarray(episode_start)
         self.values[self.pos] = value.detach().cpu().numpy().reshape(self.n_envs, self.n_scales)
         self.log_probs[self.pos] = log_prob.detach().cpu().numpy().reshape(self.n_envs)
@@ -149,8 +164,8 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
             self.full = True
 
     def add_intrinsic_rewards(self, bonus: np.ndarray) -> None:
-        """Add a scaled intrinsic reward; ``(n_steps, n_envs)`` applies to every scale, ``(n_steps, n_envs, K)``
-        to each scale separately. Call :meth:`recompute_returns_and_advantage` afterwards."""
+        """Add a scaled intrinsic reward before GAE; ``(n_steps, n_envs)`` applies to every scale,
+        ``(n_steps, n_envs, K)`` to each scale separately. The algorithm runs GAE once, after every bonus is in."""
         bonus = np.asarray(bonus, dtype=np.float32)
         if bonus.shape == (self.buffer_size, self.n_envs):
             bonus = bonus[..., None]
@@ -161,29 +176,41 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
             )
         self.intrinsic_rewards += bonus
 
-    def compute_returns_and_advantage(self, last_values: th.Tensor, dones: np.ndarray) -> None:  # type: ignore[override]
-        """Per-scale GAE on denormalised values, including the intrinsic rewards stored so far.
+    def set_last_step(self, last_values: th.Tensor, dones: np.ndarray) -> None:
+        """Store the rollout's bootstrap: the values after the last step and whether that step ended an episode.
+
+        Set before the intrinsic rewards are computed (SAEIR's ``"paper"`` variant looks one step ahead).
 
         :param last_values: normalised values ``(n_envs, K)`` of the observation after the last step
         :param dones: ``(n_envs,)`` whether the last step ended an episode
         """
         self.last_values = last_values.detach().cpu().numpy().reshape(self.n_envs, self.n_scales)
         self.last_dones = np.asarray(dones, dtype=np.float32).reshape(self.n_envs)
-        self.recompute_returns_and_advantage()
 
-    def recompute_returns_and_advantage(self) -> None:
-        """Run GAE again with the last values and dones of :meth:`compute_returns_and_advantage` (after a reward
-        change, e.g. an intrinsic-reward callback)."""
-        if self.last_values is None or self.last_dones is None:
-            raise RuntimeError("compute_returns_and_advantage must be called once before recomputing.")
-        values = self.value_denormalizer(self.values)  # (T, E, K)
-        last_values = self.value_denormalizer(self.last_values)  # (E, K)
-        rewards = self.rewards[..., None] + self.intrinsic_rewards + self.bootstrap_rewards  # (T, E, K)
+    def compute_returns_and_advantage(  # type: ignore[override]
+        self,
+        last_values: th.Tensor,
+        dones: np.ndarray,
+        denormalize: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """Per-scale GAE on denormalised values, with the intrinsic rewards stored so far.
+
+        :param last_values: normalised values ``(n_envs, K)`` of the observation after the last step
+        :param dones: ``(n_envs,)`` whether the last step ended an episode
+        :param denormalize: maps normalised values ``(..., K)`` to return space (the policy's
+            ``denormalize_values_numpy``); ``None`` when the values are not normalised
+        """
+        self.set_last_step(last_values, dones)
+        self._denormalize = denormalize
+        assert self.last_values is not None and self.last_dones is not None
+        values = self.values if denormalize is None else denormalize(self.values)  # (T, E, K)
+        last_values_np = self.last_values if denormalize is None else denormalize(self.last_values)  # (E, K)
+        rewards = self.rewards + self.intrinsic_rewards  # (T, E, K)
         last_gae_lam = np.zeros((self.n_envs, self.n_scales), dtype=np.float32)
         for step in reversed(range(self.buffer_size)):
             if step == self.buffer_size - 1:
                 next_non_terminal = 1.0 - self.last_dones
-                next_values = last_values
+                next_values = last_values_np
             else:
                 next_non_terminal = 1.0 - self.episode_starts[step + 1]
                 next_values = values[step + 1]
@@ -192,17 +219,32 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
             self.advantages[step] = last_gae_lam
         self.returns = (self.advantages + values).astype(np.float32)
 
+    def recompute_returns_and_advantage(self) -> None:
+        """Deprecated: GAE now runs once, after the intrinsic rewards (see :meth:`compute_returns_and_advantage`).
+
+        Runs GAE again with the last values, dones and de-normaliser of the previous call.
+        """
+        warnings.warn(
+            "recompute_returns_and_advantage is deprecated: MAPPO/SAEIR_PPO add every intrinsic reward before the "
+            "single GAE pass; call compute_returns_and_advantage(last_values, dones, denormalize) instead.",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        if self.last_values is None or self.last_dones is None:
+            raise RuntimeError("compute_returns_and_advantage must be called once before recomputing.")
+        self.compute_returns_and_advantage(th.as_tensor(self.last_values), self.last_dones, self._denormalize)
+
     # ------------------------------------------------------------------------------------------------ sampling
     def n_chunks(self) -> int:
         """Chunks per game: ``ceil(n_steps / data_chunk_length)``."""
         return -(-self.buffer_size // self.data_chunk_length)
 
     def n_blocks(self) -> int:
-        """Blocks (game, chunk) in the buffer."""
-        return self.n_games * self.n_chunks()
+        """Blocks (game, chunk) in the buffer (:func:`n_blocks`)."""
+        return n_blocks(self.buffer_size, self.n_games, self.data_chunk_length)
 
     def standardized_advantages(self) -> np.ndarray:
-        """Advantages standardised per scale over the whole buffer (spec §1.10 step 2), ``(T, E, K)``."""
+        """Advantages standardised per scale over the whole buffer (``docs/method.md``, "Advantage mixing"), ``(T, E, K)``."""
         mean = self.advantages.mean(axis=(0, 1), keepdims=True)
         std = self.advantages.std(axis=(0, 1), keepdims=True)
         return (self.advantages - mean) / (std + 1e-5)

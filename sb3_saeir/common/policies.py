@@ -249,9 +249,10 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         """Map normalised values ``(..., K)`` to return space with each scale's ValueNorm."""
         if not self.normalize_values:
             return values
-        return th.stack([self._value_norm(name).denormalize(values[..., k]) for k, name in enumerate(self.scales)], dim=-1)
+        return th.stack([self.value_norm(name).denormalize(values[..., k]) for k, name in enumerate(self.scales)], dim=-1)
 
-    def _value_norm(self, scale: str) -> ValueNorm:
+    def value_norm(self, scale: str) -> ValueNorm:
+        """The ValueNorm of one critic scale (the algorithm updates it with each minibatch's returns)."""
         value_norm = self.value_norms[scale]
         assert isinstance(value_norm, ValueNorm)
         return value_norm

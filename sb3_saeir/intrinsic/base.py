@@ -13,10 +13,12 @@ from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 class IntrinsicRewardCallback(BaseCallback, ABC):
     """Base class of intrinsic-reward callbacks (SAEIR, RND, Elign, your own).
 
-    At the end of each rollout, :meth:`compute_bonus` reads the rollout buffer and returns an unscaled bonus; the
-    callback adds ``coef * bonus`` to the buffer's intrinsic rewards and re-runs the buffer's GAE, so the returns and
-    advantages that training uses include it. (SB3 computes GAE right before ``on_rollout_end``; the buffer keeps the
-    last values and dones, so recomputing is exact.) Every bonus reaches training this way.
+    At the end of each rollout, after the bootstrap values and before GAE, the algorithm
+    (:class:`~sb3_saeir.MAPPO`, :class:`~sb3_saeir.SAEIR_PPO`) calls :meth:`add_to`: :meth:`compute_bonus` reads the
+    rollout buffer and returns an unscaled bonus, ``coef * bonus`` goes into the buffer's intrinsic rewards, then
+    :meth:`train_bonus_model` runs. GAE then runs once with every bonus in, and only then do the callbacks'
+    ``on_rollout_end`` run, so every callback sees the final advantages whatever the order of the callback list
+    (``docs/method.md``, "One rollout").
 
     Subclass it and implement :meth:`compute_bonus`; optionally override :meth:`_on_step` to see every transition
     (``self.locals``) or :meth:`train_bonus_model` to fit a model on the rollout (RND, Elign)::
@@ -49,19 +51,27 @@ class IntrinsicRewardCallback(BaseCallback, ABC):
     def _on_step(self) -> bool:
         return True
 
-    def _on_rollout_end(self) -> None:
-        buffer = getattr(self.model, "rollout_buffer", None)
-        if not isinstance(buffer, GroupedRecurrentRolloutBuffer):
+    def _init_callback(self) -> None:
+        if not isinstance(getattr(self.model, "rollout_buffer", None), GroupedRecurrentRolloutBuffer):
             raise TypeError(
-                f"{type(self).__name__} needs the GroupedRecurrentRolloutBuffer of SAEIR_PPO / MAPPO, got "
-                f"{type(buffer).__name__}."
+                f"{type(self).__name__} needs the GroupedRecurrentRolloutBuffer of MAPPO / SAEIR_PPO (which add the "
+                f"bonus before GAE), got {type(getattr(self.model, 'rollout_buffer', None)).__name__} "
+                f"of {type(self.model).__name__}."
             )
+
+    def add_to(self, buffer: GroupedRecurrentRolloutBuffer) -> np.ndarray:
+        """Compute the bonus of the rollout in ``buffer``, add ``coef * bonus`` to its intrinsic rewards, train the
+        bonus model and log. Called by the algorithm before GAE.
+
+        :param buffer: the full rollout buffer, with its bootstrap (``last_values``, ``last_dones``) set
+        :return: the unscaled bonus
+        """
         bonus = np.asarray(self.compute_bonus(buffer), dtype=np.float32)
         buffer.add_intrinsic_rewards(self.coef * bonus)
-        buffer.recompute_returns_and_advantage()
         self.train_bonus_model(buffer)
         self.last_bonus = bonus
         self._log_bonus(bonus, buffer)
+        return bonus
 
     def _log_bonus(self, bonus: np.ndarray, buffer: GroupedRecurrentRolloutBuffer) -> None:
         self.logger.record(f"rollout/{self.name}_reward_mean", float(bonus.mean()))

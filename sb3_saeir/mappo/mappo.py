@@ -1,31 +1,164 @@
-"""MAPPO: recurrent multi-agent PPO with a centralised critic, in the same machinery as SAEIR_PPO."""
+"""MAPPO: recurrent multi-agent PPO with centralised critics over each game's agents, and pluggable intrinsic rewards.
+
+This module holds the machinery every method of the package shares (rollout of whole games, per-scale GAE, the
+chunked recurrent PPO update); :class:`~sb3_saeir.SAEIR_PPO` is MAPPO with SAEIR's critic and bonus as defaults.
+"""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import RolloutBuffer
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
+from stable_baselines3.common.vec_env import VecEnv
+from torch.nn import functional as F
 
-from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, SNMAPPOPolicy
-from sb3_saeir.saeir_ppo.saeir_ppo import SAEIR_PPO
+from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
+from sb3_saeir.common.callbacks import episode_metric_means
+from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
+from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
+from sb3_saeir.intrinsic.elign import ElignCallback
+from sb3_saeir.intrinsic.rnd import RNDCallback
+from sb3_saeir.intrinsic.saeir import SAEIRCallback
+
+SelfMAPPO = TypeVar("SelfMAPPO", bound="MAPPO")
+
+# ``intrinsic_reward=<name>`` -> the callback class added automatically (register your own here).
+INTRINSIC_REWARDS: dict[str, type[IntrinsicRewardCallback]] = {
+    "saeir": SAEIRCallback,
+    "rnd": RNDCallback,
+    "elign": ElignCallback,
+}
 
 
-class MAPPO(SAEIR_PPO):
+def valid_batch_sizes(n_steps: int, n_games: int, n_agents: int, data_chunk_length: int) -> list[int]:
+    """Batch sizes (agent-samples) that split a rollout into equal minibatches of whole (game, chunk) blocks.
+
+    When ``n_steps`` is not a multiple of ``data_chunk_length``, blocks differ in length and only the whole rollout
+    (one minibatch) qualifies.
+    """
+    if n_steps % data_chunk_length != 0:
+        return [n_steps * n_games * n_agents]
+    block = data_chunk_length * n_agents
+    blocks = n_blocks(n_steps, n_games, data_chunk_length)
+    return [block * per_batch for per_batch in range(1, blocks + 1) if blocks % per_batch == 0]
+
+
+def scale_advantage_weights(advantages: th.Tensor) -> th.Tensor:
+    """Weights W_K of the critic scales for one minibatch (``docs/method.md``, "Advantage mixing"):
+
+    .. math:: W_K = \\frac{\\sum_j \\exp(\\hat A^K_j)}{\\sum_{K'} \\sum_j \\exp(\\hat A^{K'}_j)}
+
+    computed as a softmax over K of per-scale log-sum-exps (no overflow). No gradient flows through them; with one
+    critic the weight is 1.
+
+    :param advantages: standardised advantages of the minibatch's valid samples, ``(n_samples, K)``
+    :return: ``(K,)`` weights summing to 1
+    """
+    return th.softmax(th.logsumexp(advantages.detach(), dim=0), dim=0)
+
+
+def clipped_value_loss(
+    values: th.Tensor,
+    old_values: th.Tensor,
+    returns: th.Tensor,
+    clip_range_vf: float | None,
+    loss: str = "huber",
+    huber_delta: float = 10.0,
+) -> th.Tensor:
+    """MAPPO's clipped value loss per sample: ``max(l(R - v), l(R - v_clipped))``, with
+    ``v_clipped = v_old + clamp(v - v_old, -clip, clip)`` and ``l`` the Huber loss (``delta``) or half the squared
+    error. Without clipping (``clip_range_vf`` ``None`` or <= 0): ``l(R - v)``.
+
+    :param values: predicted (normalised) values, any shape
+    :param old_values: values stored in the rollout, same shape
+    :param returns: (normalised) returns, same shape
+    :param clip_range_vf: value clip range in normalised space
+    :param loss: ``"huber"`` or ``"mse"``
+    :param huber_delta: Huber delta
+    :return: per-sample losses, same shape
+    """
+
+    def point_loss(error: th.Tensor) -> th.Tensor:
+        if loss == "huber":
+            return F.huber_loss(error, th.zeros_like(error), reduction="none", delta=huber_delta)
+        return 0.5 * error**2
+
+    losses = point_loss(returns - values)
+    if clip_range_vf is not None and clip_range_vf > 0:
+        values_clipped = old_values + th.clamp(values - old_values, -clip_range_vf, clip_range_vf)
+        losses = th.max(losses, point_loss(returns - values_clipped))
+    return losses
+
+
+class MAPPO(OnPolicyAlgorithm):
     """Recurrent MAPPO (Yu et al., "The Surprising Effectiveness of PPO in Cooperative Multi-Agent Games", NeurIPS
-    2022 D&B; code: https://github.com/marlbenchmark/on-policy).
-
-    :class:`~sb3_saeir.SAEIR_PPO` with ``intrinsic_reward=None`` by default and ``"MAPPOPolicy"`` (a single recurrent
-    critic on the game's joint observation) as ``"MlpPolicy"``: same actor, rollout, buffer, PPO update, ValueNorm,
-    Huber value loss and chunked recurrent training, so that comparisons with SAEIR differ only in the critic and the
-    bonus. Baselines and ablations:
+    2022 D&B; code: https://github.com/marlbenchmark/on-policy), with critics over each game's agents and pluggable
+    intrinsic rewards. The machinery of every method in the package; the differences are the policy and the bonus:
 
     - MAPPO: ``MAPPO("MAPPOPolicy", env)``
     - SN-MAPPO: ``MAPPO("SNMAPPOPolicy", env)`` (spectral norm on the critic's output layer)
-    - RND / Elign: ``MAPPO("MAPPOPolicy", env).learn(n, callback=RNDCallback())`` / ``ElignCallback()``
+    - RND / Elign: ``MAPPO("MAPPOPolicy", env, intrinsic_reward="rnd")`` (or ``learn(n, callback=RNDCallback())``)
     - MSHG-only ablation: ``MAPPO("MSHGPolicy", env)``
     - SAE-only ablation: ``MAPPO("MAPPOPolicy", env, intrinsic_reward="saeir")``
+    - SAEIR: :class:`~sb3_saeir.SAEIR_PPO` (``"MSHGPolicy"`` and ``intrinsic_reward="saeir"`` by default)
 
-    All arguments are :class:`~sb3_saeir.SAEIR_PPO`'s.
+    A drop-in for SB3's :class:`~stable_baselines3.PPO` on a multi-agent vec env from
+    :func:`~sb3_saeir.make_multiagent_vec_env` (one slot per agent, parameter sharing). Differences from PPO: the
+    buffer keeps games whole; the actor and every critic are GRUs trained on chunks of ``data_chunk_length`` steps from
+    the stored states; each critic scale K has its own ValueNorm, GAE (with its own intrinsic reward) and clipped Huber
+    value loss; the actor uses the W_K-mixed standardised advantages; gradients are clipped per network. Time limits
+    count as terminal unless the env marks truncation.
+
+    Order of one rollout (``docs/method.md``, "One rollout"): collect ``n_steps`` steps of every game; compute the
+    bootstrap values; every intrinsic reward (added from ``intrinsic_reward`` or passed to ``learn``) writes
+    ``coef * compute_bonus(buffer)`` into the buffer; GAE runs once; then the callbacks' ``on_rollout_end``.
+
+    :param policy: ``"MAPPOPolicy"`` (``"MlpPolicy"``), ``"SNMAPPOPolicy"``, ``"MSHGPolicy"`` or a
+        :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy` subclass
+    :param env: a multi-agent vec env (:func:`~sb3_saeir.make_multiagent_vec_env`); it must expose ``n_agents``
+    :param learning_rate: learning rate (actor and critics), constant or schedule
+    :param n_steps: steps per game per rollout (buffer length; the SAEIR entropy window)
+    :param batch_size: minibatch size in agent-samples; must be a multiple of ``data_chunk_length * n_agents`` that
+        divides the rollout. ``None`` (default): ``n_minibatches`` decides
+    :param n_epochs: epochs per rollout
+    :param gamma: discount factor
+    :param gae_lambda: GAE lambda
+    :param clip_range: PPO clip range (also for the value clipping, as MAPPO)
+    :param clip_range_vf: value clip range in normalised space; ``None`` uses ``clip_range``; a negative value
+        turns value clipping off
+    :param normalize_advantage: standardise advantages per scale
+    :param ent_coef: entropy coefficient
+    :param vf_coef: value loss coefficient (per scale)
+    :param max_grad_norm: gradient-norm clip of each network (actor, each critic)
+    :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None`` (blocks are split as evenly as possible)
+    :param data_chunk_length: steps per recurrent training chunk (10)
+    :param intrinsic_reward: ``None`` (default) for no bonus; ``"saeir"``, ``"rnd"`` or ``"elign"`` adds that
+        :class:`~sb3_saeir.intrinsic.IntrinsicRewardCallback` (or pass your own callback to ``learn``)
+    :param intrinsic_coef: beta, scale of the intrinsic reward; ``None``: the bonus's default (SAEIR 0.1, RND 0.5,
+        Elign 1.0)
+    :param intrinsic_kwargs: extra kwargs of the intrinsic-reward callback (e.g. ``variant="paper"``)
+    :param normalize_values: ValueNorm per critic scale (``docs/method.md``, "Value normalisation")
+    :param value_loss: ``"huber"`` (MAPPO) or ``"mse"``
+    :param huber_delta: Huber delta (10)
+    :param target_kl: stop an epoch's updates early when the approximate KL exceeds ``1.5 * target_kl``
+    :param rollout_buffer_class: rollout buffer class (a
+        :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer` subclass; default that class)
+    :param rollout_buffer_kwargs: extra keyword arguments of the rollout buffer
+    :param stats_window_size: episodes averaged for ``rollout/`` logging
+    :param tensorboard_log: tensorboard log folder
+    :param policy_kwargs: policy kwargs (``n_agents`` is set from the env)
+    :param verbose: verbosity
+    :param seed: random seed
+    :param device: torch device (``"cpu"`` is fastest for these small networks; ``"cuda"`` works)
+    :param _init_setup_model: build networks and buffer now
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
@@ -34,9 +167,440 @@ class MAPPO(SAEIR_PPO):
         "SNMAPPOPolicy": SNMAPPOPolicy,
         "MSHGPolicy": MSHGPolicy,
     }
+    policy: MultiAgentActorCriticPolicy
+    rollout_buffer: GroupedRecurrentRolloutBuffer
 
-    def __init__(self, policy: Any, env: Any, intrinsic_reward: str | None = None, **kwargs: Any) -> None:
-        super().__init__(policy, env, intrinsic_reward=intrinsic_reward, **kwargs)
+    def __init__(
+        self,
+        policy: str | type[MultiAgentActorCriticPolicy],
+        env: GymEnv | str | None,
+        learning_rate: float | Schedule = 7e-4,
+        n_steps: int = 25,
+        batch_size: int | None = None,
+        n_epochs: int = 10,
+        gamma: float = 0.99,
+        gae_lambda: float = 0.95,
+        clip_range: float | Schedule = 0.2,
+        clip_range_vf: float | Schedule | None = None,
+        normalize_advantage: bool = True,
+        ent_coef: float = 0.01,
+        vf_coef: float = 1.0,
+        max_grad_norm: float = 10.0,
+        n_minibatches: int = 1,
+        data_chunk_length: int = 10,
+        intrinsic_reward: str | None = None,
+        intrinsic_coef: float | None = None,
+        intrinsic_kwargs: dict[str, Any] | None = None,
+        normalize_values: bool = True,
+        value_loss: str = "huber",
+        huber_delta: float = 10.0,
+        target_kl: float | None = None,
+        rollout_buffer_class: type[GroupedRecurrentRolloutBuffer] | None = None,
+        rollout_buffer_kwargs: dict[str, Any] | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "cpu",
+        _init_setup_model: bool = True,
+    ) -> None:
+        super().__init__(
+            policy,
+            env,  # type: ignore[arg-type]
+            learning_rate=learning_rate,
+            n_steps=n_steps,
+            gamma=gamma,
+            gae_lambda=gae_lambda,
+            ent_coef=ent_coef,
+            vf_coef=vf_coef,
+            max_grad_norm=max_grad_norm,
+            use_sde=False,
+            sde_sample_freq=-1,
+            rollout_buffer_class=rollout_buffer_class,
+            rollout_buffer_kwargs=rollout_buffer_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=False,
+            supported_action_spaces=(spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary),
+        )
+        if intrinsic_reward is not None and intrinsic_reward not in INTRINSIC_REWARDS:
+            raise ValueError(f"Unknown intrinsic_reward {intrinsic_reward!r}; choose one of {[*INTRINSIC_REWARDS, None]}.")
+        if value_loss not in ("huber", "mse"):
+            raise ValueError(f"value_loss must be 'huber' or 'mse', got {value_loss!r}.")
+        if data_chunk_length < 1:
+            raise ValueError(f"data_chunk_length must be >= 1, got {data_chunk_length}.")
+        self.batch_size = batch_size
+        self.n_epochs = n_epochs
+        self.clip_range = clip_range
+        self.clip_range_vf = clip_range_vf
+        self.normalize_advantage = normalize_advantage
+        self.target_kl = target_kl
+        self.n_minibatches = n_minibatches
+        self.data_chunk_length = data_chunk_length
+        self.intrinsic_reward = intrinsic_reward
+        self.intrinsic_coef = intrinsic_coef
+        self.intrinsic_kwargs = dict(intrinsic_kwargs or {})
+        self.normalize_values = normalize_values
+        self.value_loss = value_loss
+        self.huber_delta = huber_delta
+        self.n_agents: int | None = None
+        self._last_states: MultiAgentStates | None = None
+        self._intrinsic_rewards: list[IntrinsicRewardCallback] = []
+        if self.env is not None:
+            self.n_agents = self._check_env(self.env)
+            self.n_minibatches = self._resolve_minibatches()
+        if _init_setup_model:
+            self._setup_model()
 
-    def learn(self, total_timesteps: int, tb_log_name: str = "MAPPO", **kwargs: Any) -> MAPPO:  # type: ignore[override]
-        return super().learn(total_timesteps, tb_log_name=tb_log_name, **kwargs)
+    # ------------------------------------------------------------------------------------------------ setup
+    @staticmethod
+    def _check_env(env: VecEnv) -> int:
+        n_agents = getattr(env, "n_agents", None)
+        if n_agents is None:
+            raise ValueError(
+                f"{type(env).__name__} does not say how many agents a game has (no `n_agents`). MAPPO and SAEIR_PPO "
+                "need the multi-agent vec env of sb3_saeir.make_multiagent_vec_env(task, n_games), whose slots are "
+                "game * n_agents + agent."
+            )
+        if env.num_envs % n_agents != 0:
+            raise ValueError(f"env.num_envs={env.num_envs} is not a multiple of n_agents={n_agents}.")
+        return int(n_agents)
+
+    def _resolve_minibatches(self) -> int:
+        """Number of minibatches from ``batch_size`` (checked) or ``n_minibatches``."""
+        assert self.n_agents is not None
+        n_games = self.n_envs // self.n_agents
+        blocks = n_blocks(self.n_steps, n_games, self.data_chunk_length)
+        if self.batch_size is None:
+            if not 1 <= self.n_minibatches <= blocks:
+                raise ValueError(
+                    f"n_minibatches={self.n_minibatches} must be between 1 and the number of (game, chunk) blocks "
+                    f"{blocks} (= {n_games} games x ceil(n_steps={self.n_steps} / data_chunk_length="
+                    f"{self.data_chunk_length}))."
+                )
+            return self.n_minibatches
+        valid = valid_batch_sizes(self.n_steps, n_games, self.n_agents, self.data_chunk_length)
+        if self.batch_size not in valid:
+            hint = f"valid batch sizes: {valid}"
+            if self.n_steps % self.data_chunk_length != 0:
+                hint += (
+                    f" (n_steps={self.n_steps} is not a multiple of data_chunk_length={self.data_chunk_length}, so only "
+                    "the whole rollout splits into equal whole blocks)"
+                )
+            raise ValueError(
+                f"batch_size={self.batch_size} cannot be formed from whole (game, {self.data_chunk_length}-step chunk) "
+                f"blocks of {self.n_agents} agents ({self.data_chunk_length * self.n_agents} agent-samples each) in a "
+                f"rollout of {self.n_steps} steps x {n_games} games; {hint}. Or leave batch_size=None and set "
+                "n_minibatches instead."
+            )
+        return self.n_steps * self.n_envs // self.batch_size
+
+    def _setup_model(self) -> None:
+        if self.n_agents is None:
+            raise ValueError(f"{type(self).__name__} needs an env (make_multiagent_vec_env) or a loaded n_agents.")
+        self._setup_lr_schedule()
+        self.set_random_seed(self.seed)
+        self.policy_kwargs = {**self.policy_kwargs, "n_agents": self.n_agents, "normalize_values": self.normalize_values}
+        if not (isinstance(self.policy_class, type) and issubclass(self.policy_class, MultiAgentActorCriticPolicy)):
+            name = getattr(self.policy_class, "__name__", repr(self.policy_class))
+            raise ValueError(
+                f"{type(self).__name__} needs a MultiAgentActorCriticPolicy: one of {sorted(self.policy_aliases)} or a "
+                f"subclass of sb3_saeir.common.policies.MultiAgentActorCriticPolicy, got {name}."
+            )
+        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
+        self.policy = self.policy.to(self.device)
+        if self.rollout_buffer_class is None:
+            self.rollout_buffer_class = GroupedRecurrentRolloutBuffer
+        if not issubclass(self.rollout_buffer_class, GroupedRecurrentRolloutBuffer):
+            raise ValueError(
+                f"rollout_buffer_class must be a GroupedRecurrentRolloutBuffer subclass, got {self.rollout_buffer_class}."
+            )
+        self.rollout_buffer = self.rollout_buffer_class(
+            self.n_steps,
+            self.observation_space,  # type: ignore[arg-type]
+            self.action_space,
+            device=self.device,
+            gamma=self.gamma,
+            gae_lambda=self.gae_lambda,
+            n_envs=self.n_envs,
+            n_agents=self.n_agents,
+            n_scales=self.policy.n_scales,
+            actor_hidden_size=self.policy.hidden_size if self.policy.recurrent_actor else 0,
+            critic_hidden_size=self.policy.hidden_size,
+            data_chunk_length=self.data_chunk_length,
+            **self.rollout_buffer_kwargs,
+        )
+        self.clip_range = FloatSchedule(self.clip_range)
+        if self.clip_range_vf is not None:
+            self.clip_range_vf = FloatSchedule(self.clip_range_vf)
+
+    def _setup_learn(
+        self,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        reset_num_timesteps: bool = True,
+        tb_log_name: str = "run",
+        progress_bar: bool = False,
+    ) -> tuple[int, BaseCallback]:
+        reset = reset_num_timesteps or self._last_obs is None
+        total_timesteps, callback = super()._setup_learn(
+            total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar
+        )
+        # Fresh GRU states whenever the env is (re)started: a new learn() or an env set with set_env.
+        if reset or self._last_states is None:
+            assert self.env is not None
+            self._last_states = self.policy.initial_states(self.env.num_envs // self.policy.n_agents)
+        return total_timesteps, callback
+
+    def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
+        """Add the intrinsic reward named by ``intrinsic_reward`` (unless the user passed one of its class) and
+        remember every intrinsic-reward callback: :meth:`collect_rollouts` asks them for their bonus before GAE."""
+        callbacks = _flatten_callbacks(callback)
+        if self.intrinsic_reward is not None:
+            bonus_class = INTRINSIC_REWARDS[self.intrinsic_reward]
+            if not any(isinstance(c, bonus_class) for c in callbacks):
+                coef = {} if self.intrinsic_coef is None else {"coef": self.intrinsic_coef}
+                callbacks.append(bonus_class(**coef, **self.intrinsic_kwargs))  # type: ignore[arg-type]
+        self._intrinsic_rewards = [c for c in callbacks if isinstance(c, IntrinsicRewardCallback)]
+        return super()._init_callback(callbacks, progress_bar)
+
+    # ------------------------------------------------------------------------------------------------ rollout
+    def collect_rollouts(
+        self,
+        env: VecEnv,
+        callback: BaseCallback,
+        rollout_buffer: RolloutBuffer,
+        n_rollout_steps: int,
+    ) -> bool:
+        """Collect ``n_rollout_steps`` steps of every game (GRU states and per-scale values stored), then the
+        bootstrap values, the intrinsic rewards and one GAE pass, in that order."""
+        assert isinstance(rollout_buffer, GroupedRecurrentRolloutBuffer)
+        assert self._last_obs is not None and self._last_states is not None
+        self.policy.set_training_mode(False)
+        n_steps = 0
+        rollout_buffer.reset()
+        callback.on_rollout_start()
+        while n_steps < n_rollout_steps:
+            with th.no_grad():
+                obs_tensor = obs_as_tensor(self._last_obs, self.device)  # type: ignore[arg-type]
+                episode_starts = th.as_tensor(self._last_episode_starts, dtype=th.float32, device=self.device)
+                actions, values, log_probs, states = self.policy(obs_tensor, self._last_states, episode_starts)
+            actions_np = actions.cpu().numpy()
+            clipped_actions = actions_np
+            if isinstance(self.action_space, spaces.Box):
+                clipped_actions = np.clip(actions_np, self.action_space.low, self.action_space.high)
+            new_obs, rewards, dones, infos = env.step(clipped_actions)
+            self.num_timesteps += env.num_envs
+            callback.update_locals(locals())
+            if not callback.on_step():
+                return False
+            self._update_info_buffer(infos, dones)
+            n_steps += 1
+            if isinstance(self.action_space, spaces.Discrete):
+                actions_np = actions_np.reshape(-1, 1)
+            # (E,) -> (E, K): each critic scale gets the env reward plus its own bootstrap where a game was truncated
+            scale_rewards = np.repeat(np.asarray(rewards, dtype=np.float32)[:, None], self.policy.n_scales, axis=1)
+            scale_rewards += self._truncation_bootstrap(infos, dones, states)
+            rollout_buffer.add(
+                self._last_obs,  # type: ignore[arg-type]
+                actions_np,
+                scale_rewards,
+                self._last_episode_starts,  # type: ignore[arg-type]
+                values,
+                log_probs,
+                actor_states=self._last_states.actor,
+                critic_states=self._last_states.critic,
+            )
+            self._last_obs = new_obs  # type: ignore[assignment]
+            self._last_episode_starts = dones
+            self._last_states = states
+        with th.no_grad():
+            last_starts = th.as_tensor(dones, dtype=th.float32, device=self.device)
+            last_values = self.policy.predict_values(obs_as_tensor(new_obs, self.device), self._last_states, last_starts)  # type: ignore[arg-type]
+        rollout_buffer.set_last_step(last_values, dones)
+        for intrinsic_reward in self._intrinsic_rewards:
+            intrinsic_reward.add_to(rollout_buffer)
+        rollout_buffer.compute_returns_and_advantage(
+            last_values=last_values, dones=dones, denormalize=self.policy.denormalize_values_numpy
+        )
+        callback.update_locals(locals())
+        callback.on_rollout_end()
+        return True
+
+    def _truncation_bootstrap(self, infos: list[dict], dones: np.ndarray, states: MultiAgentStates) -> np.ndarray:
+        """``gamma * V_K(final observation)`` per scale for the slots of games that hit a time limit
+        (``TimeLimit.truncated``, only set when the env is asked to), zero elsewhere; ``(n_envs, K)``.
+
+        The critics run on the games' final observations with their states after this step.
+        """
+        bootstrap = np.zeros((len(infos), self.policy.n_scales), dtype=np.float32)
+        truncated_slots = [i for i, info in enumerate(infos) if dones[i] and info.get("TimeLimit.truncated", False)]
+        if not truncated_slots:
+            return bootstrap
+        n_agents = self.policy.n_agents
+        games = sorted({slot // n_agents for slot in truncated_slots})
+        slots = [g * n_agents + a for g in games for a in range(n_agents)]
+        terminal_obs = np.stack([infos[slot]["terminal_observation"] for slot in slots])  # (len(games) * N, d)
+        with th.no_grad():
+            obs = th.as_tensor(terminal_obs, dtype=th.float32, device=self.device)
+            game_states = MultiAgentStates(actor=states.actor[slots], critic=states.critic[:, games])  # critic (K, g, N, H)
+            normalized = self.policy.predict_values(obs, game_states)  # (len(games) * N, K)
+            values = self.policy.denormalize_values(normalized).cpu().numpy()
+        bootstrap[slots] = self.gamma * values
+        return bootstrap
+
+    # ------------------------------------------------------------------------------------------------ training
+    def train(self) -> None:
+        """PPO update on minibatches of whole-game chunks (``docs/method.md``, "The update"); one flat loop, to be
+        read next to SB3's ``PPO.train``."""
+        self.policy.set_training_mode(True)
+        self._update_learning_rate(self.policy.optimizer)
+        clip_range = self.clip_range(self._current_progress_remaining)  # type: ignore[operator]
+        clip_range_vf = clip_range
+        if self.clip_range_vf is not None:
+            clip_range_vf = self.clip_range_vf(self._current_progress_remaining)  # type: ignore[operator]
+        scales = self.policy.scales
+        pg_losses, entropy_losses, clip_fractions, approx_kl_divs = [], [], [], []
+        value_losses: dict[str, list[float]] = {scale: [] for scale in scales}
+        advantage_weights: dict[str, list[float]] = {scale: [] for scale in scales}
+        loss = th.zeros(())
+        continue_training = True
+        for epoch in range(self.n_epochs):
+            for samples in self.rollout_buffer.get(self.n_minibatches, self.normalize_advantage):
+                mask = samples.mask[:, :, None].expand_as(samples.old_log_prob).float()  # (L, B, N)
+                n_valid = mask.sum()
+
+                def masked_mean(x: th.Tensor, mask: th.Tensor = mask, n_valid: th.Tensor = n_valid) -> th.Tensor:
+                    return (x * mask).sum() / n_valid
+
+                values, log_prob, entropy = self.policy.evaluate_actions(
+                    samples.observations, samples.actions, samples.actor_states, samples.critic_states, samples.episode_starts
+                )
+                # W_K-mixed advantages: (L, B, N, K) -> (L, B, N); the weights from the valid rows (n_valid_rows * N, K)
+                advantages = samples.advantages
+                weights = scale_advantage_weights(advantages[samples.mask].reshape(-1, self.policy.n_scales))  # (K,)
+                mixed_advantages = (advantages * weights).sum(dim=-1)
+
+                # clipped surrogate objective
+                ratio = th.exp(log_prob - samples.old_log_prob)
+                policy_loss_1 = mixed_advantages * ratio
+                policy_loss_2 = mixed_advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
+                policy_loss = -masked_mean(th.min(policy_loss_1, policy_loss_2))
+                pg_losses.append(policy_loss.item())
+                clip_fractions.append(masked_mean((th.abs(ratio - 1) > clip_range).float()).item())
+
+                # entropy bonus
+                entropy_loss = -masked_mean(entropy)
+                entropy_losses.append(entropy_loss.item())
+
+                # clipped value loss per scale, on returns normalised by the scale's ValueNorm (updated here)
+                scale_losses = []
+                for k, scale in enumerate(scales):
+                    returns = samples.returns[..., k]
+                    if self.normalize_values:
+                        value_norm = self.policy.value_norm(scale)
+                        value_norm.update(returns[samples.mask])
+                        returns = value_norm.normalize(returns)
+                    per_sample = clipped_value_loss(
+                        values[..., k], samples.old_values[..., k], returns, clip_range_vf, self.value_loss, self.huber_delta
+                    )
+                    scale_losses.append(masked_mean(per_sample))
+                    value_losses[scale].append(scale_losses[-1].item())
+                    advantage_weights[scale].append(weights[k].item())
+
+                loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * th.stack(scale_losses).sum()
+
+                # approximate KL (Schulman's estimator), for logging and early stopping
+                with th.no_grad():
+                    log_ratio = log_prob - samples.old_log_prob
+                    approx_kl_div = masked_mean((th.exp(log_ratio) - 1) - log_ratio).item()
+                    approx_kl_divs.append(approx_kl_div)
+                if self.target_kl is not None and approx_kl_div > 1.5 * self.target_kl:
+                    continue_training = False
+                    if self.verbose >= 1:
+                        print(f"Early stopping at step {epoch} due to reaching max kl: {approx_kl_div:.2f}")
+                    break
+
+                # optimisation step; gradient norms clipped per network (the networks share no parameters)
+                self.policy.optimizer.zero_grad()
+                loss.backward()
+                th.nn.utils.clip_grad_norm_(self.policy.actor_parameters(), self.max_grad_norm)
+                for scale in scales:
+                    th.nn.utils.clip_grad_norm_(self.policy.critic_parameters(scale), self.max_grad_norm)
+                self.policy.optimizer.step()
+            self._n_updates += 1
+            if not continue_training:
+                break
+
+        values_in_return_space = self.policy.denormalize_values_numpy(self.rollout_buffer.values)  # (T, E, K)
+        for k, scale in enumerate(scales):
+            self.logger.record(f"train/value_loss_{scale}", float(np.mean(value_losses[scale])))
+            self.logger.record(f"train/advantage_weight_{scale}", float(np.mean(advantage_weights[scale])))
+            self.logger.record(
+                f"train/explained_variance_{scale}",
+                float(explained_variance(values_in_return_space[..., k].ravel(), self.rollout_buffer.returns[..., k].ravel())),
+            )
+        self.logger.record("train/value_loss", float(sum(np.mean(value_losses[scale]) for scale in scales)))
+        self.logger.record("train/entropy_loss", float(np.mean(entropy_losses)))
+        self.logger.record("train/policy_gradient_loss", float(np.mean(pg_losses)))
+        self.logger.record("train/approx_kl", float(np.mean(approx_kl_divs)))
+        self.logger.record("train/clip_fraction", float(np.mean(clip_fractions)))
+        self.logger.record("train/loss", loss.item())
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/clip_range", clip_range)
+        self.logger.record("train/clip_range_vf", clip_range_vf)
+
+    # ------------------------------------------------------------------------------------------------ SB3 API
+    def dump_logs(self, iteration: int = 0) -> None:
+        """SB3's logs plus the task metrics of the finished games (``rollout/coverage_rate``, ...)."""
+        for name, value in episode_metric_means(list(self.ep_info_buffer or [])).items():
+            self.logger.record(f"rollout/{name}", value)
+        super().dump_logs(iteration)
+
+    def learn(
+        self: SelfMAPPO,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = 1,
+        tb_log_name: str = "MAPPO",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfMAPPO:
+        return super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards"]
+
+    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        n_agents = self._check_env(env if isinstance(env, VecEnv) else self._wrap_env(env, self.verbose))  # type: ignore[arg-type]
+        if self.n_agents is not None and n_agents != self.n_agents:
+            raise ValueError(f"The model was built for {self.n_agents} agents per game, the env has {n_agents}.")
+        super().set_env(env, force_reset)
+        self._last_states = None
+
+
+def _flatten_callbacks(callback: MaybeCallback) -> list[BaseCallback]:
+    """The user's callbacks as a flat list (``CallbackList`` and lists unpacked, recursively)."""
+    if callback is None:
+        return []
+    if isinstance(callback, CallbackList):
+        return [c for inner in callback.callbacks for c in _flatten_callbacks(inner)]
+    if isinstance(callback, list):
+        return [c for inner in callback for c in _flatten_callbacks(inner)]
+    if isinstance(callback, BaseCallback):
+        return [callback]
+    from stable_baselines3.common.callbacks import ConvertCallback
+
+    return [ConvertCallback(callback)]

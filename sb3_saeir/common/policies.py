@@ -53,7 +53,8 @@ def _is_noop(key: str, value: Any) -> bool:
         return True
     if key == "features_extractor_class" and isinstance(value, type):
         value = value.__name__
-    return any(value is accepted or (type(value) is type(accepted) and value == accepted) for accepted in _SB3_NOOP_VALUES[key])
+    accepted_values = _SB3_NOOP_VALUES[key]
+    return any(value is accepted or (type(value) is type(accepted) and value == accepted) for accepted in accepted_values)
 
 
 def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_init: bool) -> None:

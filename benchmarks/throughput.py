@@ -1,99 +1,243 @@
-"""Agent-steps per second on a multi-agent vec env: random stepping and training of each method, in one run.
+"""Training throughput of each method at the paper's settings: agent-steps/s, where the time goes, update GFLOP/s, RSS.
 
-    python benchmarks/throughput.py --task cn-sparse-n3 --n-games 16 --steps 100000 --algos random ippo mappo saeir_ppo
+    OMP_NUM_THREADS=1 python benchmarks/throughput.py --task cn-sparse-n3 --n-games 128 --algos saeir_ppo mappo
+    python benchmarks/throughput.py --algos saeir_ppo --threads 2          # the update with 2 torch threads
+    python benchmarks/throughput.py --algos saeir_ppo --device cuda        # on a GPU machine (not run on CPU-only CI)
 
-Each method trains with its packaged config (``zoo_configs/<algo>.yml``) except the number of games; all configs
-share ``n_steps=25``, ``n_epochs=10`` and one minibatch per epoch (the whole rollout), so every method gets the same
-rollout and update schedule. Ratios to the first trained method are printed. Timings on shared machines are noisy:
-compare ratios from one run, not absolute figures across runs.
+Each method trains with its packaged config (``zoo_configs/<algo>.yml``: 25-step rollouts, 10 epochs, one minibatch,
+hidden size 64) except the number of games, in a fresh process of its own (so that its peak RSS is its own). After
+``--warmup`` untimed iterations, ``--iterations`` more are timed, and the wall time is split into:
+
+- **env**: ``VecEnv.step`` (the environment, with its wrappers);
+- **inference**: the policy's rollout forward passes (``policy.forward`` and ``policy.predict_values``);
+- **update**: ``model.train()`` (every epoch and minibatch of the PPO update);
+- **bonus**: the intrinsic-reward callbacks (``IntrinsicRewardCallback.add_to``, or their ``on_rollout_end`` in versions
+  that computed the bonus there);
+- **other**: the rest (buffer writes, GAE, logging).
+
+The floating-point work of one update is counted once with ``torch.utils.flop_counter.FlopCounterMode`` (matrix
+products, which dominate these networks; elementwise operations are not counted), then divided by the mean timed
+update to give the update's GFLOP/s, which is compared with a 64-wide matrix product ``(rows, 64) @ (64, 64)``
+measured in the same process with the same threads and device. ``random`` steps the env with random actions.
+
+Timings on shared machines are noisy: compare figures from one sitting, interleaving the versions compared. The
+script only uses the public API (``sb3_saeir.config.build_model``), so it also runs against older versions of the
+package (run it with that version's interpreter).
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import resource
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import torch as th
 
-from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, build_model
+PHASES = ("env", "inference", "update", "bonus")
 
 
-def random_stepping(task: str, n_games: int, agent_steps: int, seed: int) -> float:
-    """Agent-steps/s of uniformly random actions."""
+def matmul_gflops(device: th.device, rows: int = 11_520, width: int = 64, seconds: float = 0.5) -> float:
+    """GFLOP/s of ``(rows, width) @ (width, width)`` float32 products (best of 5 timed batches).
+
+    :param device: torch device
+    :param rows: rows of the left operand (the update's node count at 128 games)
+    :param width: inner and output width
+    :param seconds: rough duration of each timed batch
+    """
+    a = th.randn(rows, width, device=device)
+    b = th.randn(width, width, device=device)
+    out = th.empty(rows, width, device=device)
+
+    def sync() -> None:
+        if device.type == "cuda":
+            th.cuda.synchronize(device)
+
+    th.mm(a, b, out=out)
+    sync()
+    start = time.perf_counter()
+    reps = 0
+    while time.perf_counter() - start < 0.05:
+        th.mm(a, b, out=out)
+        reps += 1
+    sync()
+    per_call = (time.perf_counter() - start) / reps
+    n_calls = max(1, int(seconds / per_call))
+    best = float("inf")
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(n_calls):
+            th.mm(a, b, out=out)
+        sync()
+        best = min(best, (time.perf_counter() - start) / n_calls)
+    return 2.0 * rows * width * width / best / 1e9
+
+
+class PhaseTimer:
+    """Accumulates wall time of wrapped callables per phase (outermost call only, so nested calls count once)."""
+
+    def __init__(self, device: th.device) -> None:
+        self.totals = dict.fromkeys(PHASES, 0.0)
+        self.counts = dict.fromkeys(PHASES, 0)
+        self.device = device
+        self._depth = 0
+
+    def wrap(self, phase: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+        """Return ``fn`` timed under ``phase``.
+
+        :param phase: one of :data:`PHASES`
+        :param fn: the callable to time
+        """
+
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            if self._depth:
+                return fn(*args, **kwargs)
+            self._depth += 1
+            start = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                if self.device.type == "cuda":
+                    th.cuda.synchronize(self.device)
+                self.totals[phase] += time.perf_counter() - start
+                self.counts[phase] += 1
+                self._depth -= 1
+
+        return timed
+
+    def reset(self) -> None:
+        self.totals = dict.fromkeys(PHASES, 0.0)
+        self.counts = dict.fromkeys(PHASES, 0)
+
+
+def _patch_bonus(timer: PhaseTimer) -> None:
+    """Time the intrinsic-reward callbacks (class-level patch; ``add_to`` in this version, ``on_rollout_end`` before)."""
+    try:
+        from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
+    except ImportError:  # a version without intrinsic rewards
+        return
+    if hasattr(IntrinsicRewardCallback, "add_to"):
+        IntrinsicRewardCallback.add_to = timer.wrap("bonus", IntrinsicRewardCallback.add_to)  # type: ignore[method-assign]
+    else:
+        IntrinsicRewardCallback.on_rollout_end = timer.wrap("bonus", IntrinsicRewardCallback.on_rollout_end)  # type: ignore[method-assign]
+
+
+def measure_method(
+    algo: str, task: str, n_games: int, warmup: int, iterations: int, seed: int, device: str, threads: int
+) -> dict:
+    """Train ``algo`` in this process and return its figures (run in a fresh process per method).
+
+    :return: agent-steps/s, seconds per phase, update GFLOP and GFLOP/s, the matmul GFLOP/s, peak RSS (MiB)
+    """
+    th.set_num_threads(threads)
+    from sb3_saeir.config import build_model
+
+    torch_device = th.device(device)
+    if algo == "random":
+        return _random_stepping(task, n_games, iterations, seed)
+    timer = PhaseTimer(torch_device)
+    _patch_bonus(timer)
+    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed, device=device)
+    policy = model.policy
+    policy.forward = timer.wrap("inference", policy.forward)  # type: ignore[method-assign]
+    policy.predict_values = timer.wrap("inference", policy.predict_values)  # type: ignore[method-assign]
+    model.env.step = timer.wrap("env", model.env.step)  # type: ignore[method-assign, union-attr]
+    model.train = timer.wrap("update", model.train)  # type: ignore[method-assign]
+    rollout = model.n_steps * env.num_envs
+    model.learn(warmup * rollout, callback=callbacks)
+    timer.reset()
+    start_steps = model.num_timesteps
+    start = time.perf_counter()
+    model.learn(iterations * rollout, callback=callbacks, reset_num_timesteps=False)
+    wall = time.perf_counter() - start
+    steps = model.num_timesteps - start_steps
+    phases, n_updates = dict(timer.totals), timer.counts["update"]
+
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with FlopCounterMode(display=False) as counter:
+        model.train()  # untimed: counts the work of one update on the last rollout
+    env.close()
+    update_gflop = counter.get_total_flops() / 1e9
+    update_seconds = phases["update"] / max(n_updates, 1)
+    return {
+        "agent_steps_per_s": steps / wall,
+        "wall": wall,
+        "phases": phases,
+        "update_gflop": update_gflop,
+        "update_gflops": update_gflop / update_seconds if update_seconds > 0 else float("nan"),
+        "matmul_gflops": matmul_gflops(torch_device),
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
+
+
+def _random_stepping(task: str, n_games: int, iterations: int, seed: int) -> dict:
+    from sb3_saeir import make_multiagent_vec_env
+
     env = make_multiagent_vec_env(task, n_games=n_games, seed=seed)
     rng = np.random.default_rng(seed)
     env.reset()
-    n_vec_steps = max(1, agent_steps // env.num_envs)
+    n_vec_steps = 25 * iterations
     start = time.perf_counter()
     for _ in range(n_vec_steps):
-        env.step(rng.integers(0, env.action_space.n, size=env.num_envs))
-    elapsed = time.perf_counter() - start
+        env.step(rng.integers(0, env.action_space.n, size=env.num_envs))  # type: ignore[attr-defined]
+    wall = time.perf_counter() - start
     env.close()
-    return n_vec_steps * env.num_envs / elapsed
-
-
-def training(algo: str, task: str, n_games: int, agent_steps: int, seed: int) -> float:
-    """Agent-steps/s of ``learn`` (rollout + update) with the method's packaged config (``zoo_configs/<algo>.yml``)."""
-    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed)
-    start = time.perf_counter()
-    model.learn(agent_steps, callback=callbacks)
-    elapsed = time.perf_counter() - start
-    steps = model.num_timesteps
-    env.close()
-    return steps / elapsed
-
-
-def update_gflop(algo: str, task: str, n_games: int, seed: int) -> tuple[float, int]:
-    """Floating-point work of one PPO update (all epochs and minibatches) after one rollout, counted by
-    ``torch.utils.flop_counter`` (matrix products, which dominate these networks).
-
-    :return: GFLOP of the update and the agent-steps of the rollout it trains on
-    """
-    from torch.utils.flop_counter import FlopCounterMode
-
-    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed)
-    model.learn(model.n_steps * env.num_envs, callback=callbacks)  # one rollout and one update
-    with FlopCounterMode(display=False) as counter:
-        model.train()
-    env.close()
-    return counter.get_total_flops() / 1e9, model.n_steps * env.num_envs
+    return {
+        "agent_steps_per_s": n_vec_steps * env.num_envs / wall,
+        "wall": wall,
+        "phases": {"env": wall},
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default="cn-sparse-n3")
-    parser.add_argument("--n-games", type=int, default=16)
-    parser.add_argument("--steps", type=int, default=100_000, help="agent-steps per measurement")
-    parser.add_argument("--algos", nargs="+", default=["random", "ippo", "saeir_ppo"], help=f"random or {sorted(ALGOS)}")
+    parser.add_argument("--n-games", type=int, default=128)
+    parser.add_argument("--algos", nargs="+", default=["saeir_ppo", "mappo"], help="random or methods of sb3_saeir.config")
+    parser.add_argument("--warmup", type=int, default=1, help="untimed iterations (rollout + update) first")
+    parser.add_argument("--iterations", type=int, default=3, help="timed iterations (rollout + update)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (the update's figure in the issue: 1)")
+    parser.add_argument("--device", default="cpu", help="torch device of the policy: cpu or cuda (needs a GPU build)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--flops", action="store_true", help="also print the GFLOP of one update per agent-step")
     args = parser.parse_args()
-    th.set_num_threads(1)
 
-    results: dict[str, float] = {}
+    context = multiprocessing.get_context("spawn")
+    print(
+        f"task {args.task}, {args.n_games} games, {args.iterations} timed iterations after {args.warmup}, "
+        f"{args.threads} thread(s), device {args.device}, torch {th.__version__}"
+    )
+    header = (
+        f"{'method':>10} {'agent-steps/s':>13} {'env%':>5} {'inf%':>5} {'upd%':>5} {'bonus%':>6} {'other%':>6} "
+        f"{'upd s':>6} {'upd GFLOP':>9} {'GFLOP/s':>7} {'matmul':>6} {'ratio':>5} {'peak RSS MiB':>12}"
+    )
+    print(header, flush=True)
     for algo in args.algos:
-        if algo == "random":
-            results[algo] = random_stepping(args.task, args.n_games, args.steps, args.seed)
-        elif algo in ALGOS:
-            results[algo] = training(algo, args.task, args.n_games, args.steps, args.seed)
+        with context.Pool(1) as pool:
+            result = pool.apply(
+                measure_method,
+                (algo, args.task, args.n_games, args.warmup, args.iterations, args.seed, args.device, args.threads),
+            )
+        wall, phases = result["wall"], result["phases"]
+        shares = {phase: 100.0 * phases.get(phase, 0.0) / wall for phase in PHASES}
+        other = 100.0 - sum(shares.values())
+        update_seconds = phases.get("update", 0.0) / max(args.iterations, 1)
+        if "update_gflop" in result:
+            flops = (
+                f"{update_seconds:6.2f} {result['update_gflop']:9.1f} {result['update_gflops']:7.1f} "
+                f"{result['matmul_gflops']:6.1f} {result['update_gflops'] / result['matmul_gflops']:5.2f}"
+            )
         else:
-            print(f"skipping {algo}: not available")
-            continue
-        print(f"{algo:>12}: {results[algo]:9.0f} agent-steps/s", flush=True)
-    trained = [algo for algo in results if algo != "random"]
-    if trained:
-        reference = trained[0]
-        for algo in trained[1:]:
-            print(f"ratio {algo}/{reference}: {results[algo] / results[reference]:.2f}")
-    if args.flops:
-        for algo in trained:
-            gflop, n_agent_steps = update_gflop(algo, args.task, args.n_games, args.seed)
-            print(f"{algo:>12}: {gflop:.2f} GFLOP per update, {gflop / n_agent_steps * 1e6:.0f} kFLOP per agent-step")
-    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"task {args.task}, {args.n_games} games, {args.steps} agent-steps per method; peak RSS {peak_mb:.0f} MB")
+            flops = f"{'-':>6} {'-':>9} {'-':>7} {'-':>6} {'-':>5}"
+        print(
+            f"{algo:>10} {result['agent_steps_per_s']:13.0f} {shares['env']:5.1f} {shares['inference']:5.1f} "
+            f"{shares['update']:5.1f} {shares['bonus']:6.1f} {other:6.1f} {flops} {result['peak_rss_mib']:12.0f}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

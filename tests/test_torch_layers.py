@@ -4,6 +4,7 @@ import pytest
 import torch as th
 from torch import nn
 
+from sb3_saeir.common.hypergraph import build_incidence, edge_to_node, gumbel_softmax, node_to_edge
 from sb3_saeir.common.torch_layers import ActorNetwork, FCBlock, GRULayer, MLPEncoder, ScaleCritic, ValueNorm
 
 GRF_OBS_DIM = 115
@@ -278,3 +279,88 @@ def test_scale_critic_matches_hand_written_reference(scale, n_agents, group_size
         gru_features = gru_features.reshape(2, n_agents, 16)
         for game in range(2):
             th.testing.assert_close(values[0, game], _reference_critic_values(critic, gru_features[game]), atol=1e-10, rtol=0)
+
+
+def _generic_message_passing(critic: ScaleCritic, nodes: th.Tensor, gumbel_noise: bool) -> th.Tensor:
+    """The critic's message passing as first written, every module run on every hypergraph (no shortcut):
+    node-to-edge attention for every scale, the incidence products for H = I, the edge types as a list of modules.
+
+    :param critic: the critic whose modules to run
+    :param nodes: GRU features ``(B, N, H)``
+    :param gumbel_noise: draw Gumbel noise (from the global RNG, in the same order as the critic)
+    :return: node representations ``(B, N, H)``
+    """
+    incidence = build_incidence(critic.scale, nodes, critic.group_size)  # (B, E, N)
+    x = critic.node2edge_start(nodes)  # (B, N, H)
+    edges_init = incidence @ x  # (B, E, H)
+    n_edges, n_agents = incidence.shape[-2:]
+    pairs = th.cat(
+        [x.unsqueeze(-3).expand(-1, n_edges, -1, -1), edges_init.unsqueeze(-2).expand(-1, -1, n_agents, -1)], dim=-1
+    )  # (B, E, N, 2H)
+    logits = critic.attention(pairs).squeeze(-1)  # (B, E, N)
+    edges = critic.init_fc(node_to_edge(x, incidence, logits))  # (B, E, H)
+    type_probs = gumbel_softmax(critic.edge_type(edges), critic.gumbel_tau, noise=gumbel_noise)  # (B, E, T_K)
+    edge_weights = th.sigmoid(critic.edge_factor(edges)) * type_probs  # (B, E, T_K)
+    raw_edges = incidence @ nodes  # (B, E, H)
+    typed = th.stack([fc(raw_edges) for fc in critic.edge_aggregation], dim=-2)  # (B, E, T_K, H)
+    messages = (edge_weights.unsqueeze(-1) * typed).sum(dim=-2)  # (B, E, H)
+    return critic.node_end(edge_to_node(messages, incidence, nodes))  # (B, N, H)
+
+
+@pytest.mark.parametrize(
+    "scale, n_agents, group_size, n_edge_types",
+    [("team", 3, 2, 3), ("group", 3, 2, 3), ("group", 4, 3, 3), ("group", 3, 2, 1), ("individual", 3, 2, 3)],
+)
+@pytest.mark.parametrize("gumbel_noise", [True, False])
+def test_scale_critic_shortcuts_match_generic_path(scale, n_agents, group_size, n_edge_types, gumbel_noise):
+    # the shortcuts (team: no node-to-edge path; H = I: diagonal attention and messages; no unused u_e product) give
+    # the values, the gradients of every parameter and the global RNG stream of the generic computation
+    critic = _small_critic(scale, n_agents=n_agents, group_size=group_size, n_edge_types=n_edge_types)
+    with th.no_grad():  # random LayerNorm affine parameters make every path visible
+        for module in critic.modules():
+            if isinstance(module, nn.LayerNorm):
+                module.weight.normal_(1.0, 0.3)
+                module.bias.normal_(0.0, 0.3)
+    obs, hidden, starts = _critic_inputs(5, 4, n_agents, seed=5)
+    weights = th.randn(5, 4, n_agents)
+
+    def run(message_passing) -> tuple[th.Tensor, dict[str, th.Tensor | None], th.Tensor]:
+        critic.zero_grad(set_to_none=True)
+        th.manual_seed(11)
+        features, _ = critic._encode(obs, hidden, starts)  # (T, G, N, H)
+        nodes = features.reshape(-1, n_agents, 16)  # (T*G, N, H)
+        values = critic.value_net(message_passing(nodes)).reshape(5, 4, n_agents)  # (T*G, N, 1) -> (T, G, N)
+        (values * weights).sum().backward()
+        grads = {name: None if p.grad is None else p.grad.clone() for name, p in critic.named_parameters()}
+        return values.detach(), grads, th.rand(3)  # the next draw checks that the RNG stream is the same
+
+    fast_values, fast_grads, fast_draw = run(lambda nodes: critic._message_passing(nodes, gumbel_noise))
+    ref_values, ref_grads, ref_draw = run(lambda nodes: _generic_message_passing(critic, nodes, gumbel_noise))
+    th.testing.assert_close(fast_values, ref_values, atol=1e-5, rtol=1e-5)
+    assert th.equal(fast_draw, ref_draw)
+    for name, ref_grad in ref_grads.items():
+        fast_grad = fast_grads[name]
+        if ref_grad is None or fast_grad is None:  # a skipped module must have had no gradient path at all
+            assert ref_grad is None or th.all(ref_grad == 0), name
+            assert fast_grad is None or th.all(fast_grad == 0), name
+            continue
+        th.testing.assert_close(fast_grad, ref_grad, atol=1e-5, rtol=1e-5, msg=name)
+
+
+@pytest.mark.parametrize("n_steps", [1, 6])
+def test_gru_layer_one_stretch_and_one_step_paths(n_steps):
+    # T = 1 (rollout: no reset search) and a sequence without resets after t = 0 (no concatenation) equal a step loop
+    layer = GRULayer(5, 7)
+    x = th.randn(n_steps, 4, 5)
+    hidden = th.randn(4, 7)
+    starts = th.zeros(n_steps, 4)
+    starts[0, 1] = 1.0
+    out, last = layer(x, hidden, starts)
+    h = hidden * (1.0 - starts[0]).unsqueeze(-1)
+    steps = []
+    for t in range(n_steps):
+        step_out, h_n = layer.gru(x[t : t + 1], h.unsqueeze(0))
+        h = h_n.squeeze(0)
+        steps.append(step_out)
+    th.testing.assert_close(out, layer.norm(th.cat(steps)), atol=1e-6, rtol=1e-5)
+    th.testing.assert_close(last, h, atol=1e-6, rtol=1e-5)

@@ -4,7 +4,8 @@ Stateless tensor functions of the multi-scale hypergraph (MSHG) critic of SAEIR 
 Incidence matrices are **edge-major**, as in the authors' code: :math:`H \in \{0, 1\}^{E \times N}` with
 :math:`H_{e,i} = 1` iff node (agent) :math:`i` belongs to hyperedge :math:`e` (the paper's :math:`H` is the
 transpose). Batched tensors are ``(B, E, N)``; ``B`` is any number of leading batch axes.
-Reference: ``saeir-spec.md`` §1.3-§1.6.
+Reference: ``docs/method.md`` ("The critic"; the "§" numbers below are the sections of the specification it
+summarises).
 """
 
 import torch as th

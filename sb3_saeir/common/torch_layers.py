@@ -2,7 +2,8 @@ r"""
 Network modules of SAEIR (IJCAI-24): the recurrent actor trunk, one scale of the multi-scale hypergraph (MSHG)
 critic, and the running value normaliser.
 
-Reference: ``saeir-spec.md`` §1.2-§1.9 (critic) and §3 (actor). Paper: He et al., "SAEIR: Sequentially
+Reference: ``docs/method.md`` ("The critic"; the "§" numbers below are the sections of the specification it
+summarises). Paper: He et al., "SAEIR: Sequentially
 Accumulated Entropy Intrinsic Reward for Cooperative Multi-Agent Reinforcement Learning with Sparse Reward",
 IJCAI-24.
 """
@@ -125,16 +126,21 @@ class GRULayer(nn.Module):
         :return: LayerNorm'ed outputs ``(T, B, H)`` and the raw last hidden state ``(B, H)``.
         """
         keep = 1.0 - episode_starts.to(x.dtype)  # (T, B)
-        # Split the sequence where any sequence restarts (always at t = 0)
-        reset_steps = (keep[1:] < 1.0).any(dim=-1).nonzero().squeeze(-1) + 1
-        boundaries = [0, *reset_steps.tolist(), x.shape[0]]
+        if x.shape[0] == 1:
+            # one step (the rollout): no split to find, so no device-to-host sync of the reset steps
+            boundaries = [0, 1]
+        else:
+            # Split the sequence where any sequence restarts (always at t = 0)
+            reset_steps = (keep[1:] < 1.0).any(dim=-1).nonzero().squeeze(-1) + 1
+            boundaries = [0, *reset_steps.tolist(), x.shape[0]]
         outputs = []
         for start, end in itertools.pairwise(boundaries):
             hidden = hidden * keep[start].unsqueeze(-1)  # (B, H)
             out, hidden_n = self.gru(x[start:end], hidden.unsqueeze(0).contiguous())  # (L, B, H), (1, B, H)
             hidden = hidden_n.squeeze(0)  # (B, H)
             outputs.append(out)
-        return self.norm(th.cat(outputs)), hidden
+        # one stretch (no reset after t = 0, the usual case): no concatenation copy
+        return self.norm(outputs[0] if len(outputs) == 1 else th.cat(outputs)), hidden
 
 
 class ActorNetwork(nn.Module):
@@ -307,9 +313,17 @@ class ScaleCritic(nn.Module):
         """
         incidence = build_incidence(self.scale, nodes, self.group_size)  # (B, E, N)
         edge_weights = self._edge_type_weights(nodes, incidence, gumbel_noise)  # (B, E, T_K)
+        # Kept as a product even for H = I: it fixes the order in which autograd sums the gradients reaching h, and
+        # the golden runs (Adam on near-zero gradients) are sensitive to the last bit of that sum.
         raw_edges = incidence @ nodes  # (B, E, H), unweighted member sums of h
-        typed = th.stack([fc(raw_edges) for fc in self.edge_aggregation], dim=-2)  # (B, E, T_K, H)
-        messages = (edge_weights.unsqueeze(-1) * typed).sum(dim=-2)  # (B, E, H)
+        if len(self.edge_aggregation) == 1:  # one edge type (team): no stack, no sum over types
+            messages = edge_weights * self.edge_aggregation[0](raw_edges)  # (B, E, 1) * (B, E, H)
+        else:
+            typed = th.stack([fc(raw_edges) for fc in self.edge_aggregation], dim=-2)  # (B, E, T_K, H)
+            messages = (edge_weights.unsqueeze(-1) * typed).sum(dim=-2)  # (B, E, H)
+        if self.scale == "individual":  # H^T m = m (exactly)
+            n_agents = nodes.shape[-2]
+            return self.node_end(th.cat([messages, nodes], dim=-1) / n_agents)  # (B, N, 2H) -> (B, N, H)
         return self.node_end(edge_to_node(messages, incidence, nodes))  # (B, N, 2H) -> (B, N, H)
 
     def _edge_type_weights(self, nodes: th.Tensor, incidence: th.Tensor, gumbel_noise: bool) -> th.Tensor:
@@ -321,12 +335,20 @@ class ScaleCritic(nn.Module):
         :param gumbel_noise: Whether to draw Gumbel noise.
         :return: Edge-type weights :math:`w_e = \sigma_e \pi_e`, ``(B, E, T_K)``.
         """
-        x = self.node2edge_start(nodes)  # (B, N, H)
-        edges_init = incidence @ x  # (B, E, H)
+        n_batch = nodes.shape[0]
         n_edges, n_agents = incidence.shape[-2:]
+        if self.edge_type.is_constant and self.edge_factor.is_constant:
+            # One edge type (the team scale): both heads are 1-output blocks, i.e. constants (their LayerNorm biases),
+            # so the node-to-edge embedding below changes neither the weights nor any gradient; skip it. The Gumbel
+            # noise is still drawn (same shape), which keeps the global RNG stream of the full computation.
+            type_logits = self.edge_type.constant_output(n_batch, n_edges)  # (B, E, 1)
+            type_probs = gumbel_softmax(type_logits, self.gumbel_tau, noise=gumbel_noise)  # (B, E, 1), all 1
+            return th.sigmoid(self.edge_factor.constant_output(n_batch, n_edges)) * type_probs  # (B, E, 1)
+        x = self.node2edge_start(nodes)  # (B, N, H)
         if self.attention.is_constant:  # the released 1-output head (spec §1.8a): same logit for every pair
-            logits = self.attention.constant_output(x.shape[0], n_edges, n_agents).squeeze(-1)  # (B, E, N)
+            logits = self.attention.constant_output(n_batch, n_edges, n_agents).squeeze(-1)  # (B, E, N)
         else:
+            edges_init = incidence @ x  # (B, E, H)
             pairs = th.cat(
                 [
                     x.unsqueeze(-3).expand(-1, n_edges, -1, -1),  # (B, E, N, H): x_i
@@ -335,7 +357,12 @@ class ScaleCritic(nn.Module):
                 dim=-1,
             )  # (B, E, N, 2H)
             logits = self.attention(pairs).squeeze(-1)  # (B, E, N)
-        edges = self.init_fc(node_to_edge(x, incidence, logits))  # (B, E, H)
+        if self.scale == "individual":
+            # H = I: the softmax weights are diagonal, so the weighted member sum is the diagonal weight times x_e
+            weights = th.softmax(logits * incidence, dim=-1) * incidence  # (B, N, N)
+            edges = self.init_fc(weights.diagonal(dim1=-2, dim2=-1).unsqueeze(-1) * x)  # (B, N, 1) * (B, N, H)
+        else:
+            edges = self.init_fc(node_to_edge(x, incidence, logits))  # (B, E, H)
         type_probs = gumbel_softmax(self.edge_type(edges), self.gumbel_tau, noise=gumbel_noise)  # (B, E, T_K)
         return th.sigmoid(self.edge_factor(edges)) * type_probs  # (B, E, 1) * (B, E, T_K)
 

@@ -3,6 +3,7 @@ scripted oracle (the task is solvable).
 
     python benchmarks/scripted_navigation.py                      # every world x reward x N in {3, 4}, both policies
     python benchmarks/scripted_navigation.py --worlds mpe --rewards reach --n 3 --policies scripted --episodes 200
+    python benchmarks/scripted_navigation.py --worlds mpe2 --rewards occupancy --policy random --task-n 3   # earlier figures
 
 Each figure is the mean over ``--episodes`` episodes of ``evaluate_multiagent_policy`` on 10 games (seed 12345, the
 evaluation set of the slow learning test) of the navigation task with ``N``, ``world`` and ``reward`` set
@@ -88,8 +89,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--worlds", nargs="+", choices=WORLDS, default=list(WORLDS))
     parser.add_argument("--rewards", nargs="+", choices=REWARDS, default=list(REWARDS))
-    parser.add_argument("--n", type=int, nargs="+", default=[3, 4], help="agents = landmarks")
-    parser.add_argument("--policies", nargs="+", choices=["random", "scripted"], default=["random", "scripted"])
+    parser.add_argument("--n", "--task-n", type=int, nargs="+", default=[3, 4], help="agents = landmarks")
+    parser.add_argument("--policies", "--policy", nargs="+", choices=["random", "scripted"], default=["random", "scripted"])
     parser.add_argument("--episodes", type=int, default=1000)
     args = parser.parse_args()
     header = ["world", "reward", "N", "policy", *(("return" if key == "ep_rew" else key) for key in METRICS)]

@@ -4,8 +4,11 @@ It offers what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` offers over S
 ``n_agents`` / ``n_games`` / ``possible_agents``, per-game seeds ``seed + g``, lockstep resets, bool dones,
 ``terminal_observation``, one ``episode`` dict per game with the task metrics, ``get_state``, per-game
 ``get_attr`` / ``set_attr`` / ``env_method``, ``render()`` of game 0) and gives the same streams as
-:class:`~sb3_saeir.envs.navigation.SparseCooperativeNavigation` through SuperSuit for the same seed, without a Python
-loop over games or agents in the step. The task is described in ``docs/tasks.md``.
+:class:`~sb3_saeir.envs.navigation.SparseCooperativeNavigation` through SuperSuit for the same seed (observations,
+rewards, dones, episode records). Physics, rewards and observations have no Python loop over games or agents; Python
+only builds the per-slot info dicts the SB3 API asks for (empty during an episode: the per-step
+``covered_landmarks`` / ``collision`` infos of the ParallelEnv are left out for speed; the task metrics come at a
+game's end). The task is described in ``docs/tasks.md``.
 """
 
 from __future__ import annotations

@@ -35,7 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from sb3_saeir.config import ALGOS
+from sb3_saeir.config import ALGOS, ConfigError, check_hyperparams, load_hyperparams, parse_params
+from sb3_saeir.evaluation import MultiAgentEvalCallback
 
 # Columns of the paper's Table 1 per task family: (metric key in runs.csv, header, scale)
 TABLE_COLUMNS = {
@@ -102,19 +103,64 @@ def write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
         writer.writerows(rows)
 
 
+class BenchmarkEvalCallback(MultiAgentEvalCallback):
+    """The benchmark's evaluation: every evaluation becomes a row of the run's ``evaluations.csv``, and the model is
+    checkpointed at the start of every rollout after the first (a consistent point to resume from).
+
+    :param eval_env: the evaluation env
+    :param spec: the run
+    :param evaluations_path: the run's ``evaluations.csv``
+    :param checkpoint_path: the run's ``checkpoint.zip``
+    :param rows: evaluation rows already recorded (kept on resume)
+    :param n_agents: agents per game (``env_steps = agent-steps / n_agents``)
+    :param main_metric: the task's main metric
+    """
+
+    def __init__(
+        self,
+        eval_env: Any,
+        spec: RunSpec,
+        evaluations_path: Path,
+        checkpoint_path: Path,
+        rows: list[dict[str, Any]],
+        n_agents: int,
+        main_metric: str,
+    ) -> None:
+        super().__init__(eval_env, spec.eval_episodes, spec.eval_freq, main_metric=main_metric, verbose=0)
+        self.spec = spec
+        self.evaluations_path = evaluations_path
+        self.checkpoint_path = checkpoint_path
+        self.rows = rows
+        self.n_agents = n_agents
+        self.resumed_at = 0
+        self.last_eval_timestep = int(rows[-1]["timesteps"]) if rows else 0
+
+    def _on_rollout_start(self) -> None:
+        if self.model.num_timesteps > self.resumed_at:  # after an update: a consistent point to resume from
+            self.model.save(self.checkpoint_path)
+
+    def evaluate(self) -> bool:
+        keep_going = super().evaluate()
+        spec = self.spec
+        row: dict[str, Any] = {"algo": spec.algo, "task": spec.task, "seed": spec.seed, "timesteps": self.num_timesteps}
+        row["env_steps"] = self.num_timesteps // self.n_agents
+        row.update({key: value for key, value in self.last_summary.items() if not key.endswith("_std")})
+        row.update({key: value for key, value in self.last_summary.items() if key.endswith("_std")})
+        self.rows.append(row)
+        write_rows(self.evaluations_path, self.rows)
+        return keep_going
+
+
 def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
     """Train and evaluate one run in ``folder`` (resuming from its checkpoint); returns its evaluation rows.
 
-    Runs in a worker process (local or Ray): imports are local and torch uses one thread.
+    Runs in a worker process (local or Ray): torch uses one thread.
     """
     import torch as th
-    from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.logger import configure
 
-    from sb3_saeir.common.vec_env import make_multiagent_vec_env
-    from sb3_saeir.config import build_model, load_hyperparams
-    from sb3_saeir.envs import get_task_spec
-    from sb3_saeir.evaluation import MultiAgentEvalCallback
+    from sb3_saeir.config import load_hyperparams
+    from sb3_saeir.experiment import Experiment
 
     th.set_num_threads(1)
     path = Path(folder)
@@ -123,50 +169,38 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
     if (path / "done.json").is_file():
         return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(evaluations_path)}
     start = time.time()
-    hyperparams = {**load_hyperparams(spec.algo, spec.task), **spec.params}
-    model, env, callbacks, _ = build_model(spec.algo, spec.task, hyperparams, n_games=spec.n_games, seed=spec.seed)
-    n_agents = env.num_envs // (spec.n_games or int(hyperparams.get("n_envs", 8)))
+    experiment = Experiment(
+        spec.algo, spec.task, {**load_hyperparams(spec.algo, spec.task), **spec.params}, seed=spec.seed, n_games=spec.n_games
+    )
+    model = experiment.build()
+    assert experiment.env is not None
+    n_agents = experiment.env.num_envs // experiment.n_games
     done_steps = 0
     checkpoint = path / "checkpoint.zip"
     if checkpoint.is_file():  # resume: the model, its optimizer and ValueNorm statistics, and its step counter
-        model = type(model).load(checkpoint, env=env, device="cpu")
+        model = experiment.load(checkpoint)
         done_steps = model.num_timesteps
     rows = [row for row in read_rows(evaluations_path) if row["timesteps"] <= done_steps]
     model.set_logger(configure(str(path), ["csv"]))
-    eval_env = make_multiagent_vec_env(
-        spec.task, n_games=min(spec.eval_episodes, 10), seed=10_000 + spec.seed, **(hyperparams.get("env_kwargs") or {})
+    evaluator = BenchmarkEvalCallback(
+        experiment.make_eval_env(spec.eval_episodes),
+        spec,
+        evaluations_path,
+        checkpoint,
+        rows,
+        n_agents,
+        experiment.main_metric,
     )
-
-    class RecordAndCheckpoint(MultiAgentEvalCallback):
-        def _on_rollout_start(self) -> None:
-            if self.model.num_timesteps > done_steps:  # after an update: a consistent point to resume from
-                self.model.save(checkpoint)
-
-        def evaluate(self) -> bool:
-            keep_going = super().evaluate()
-            row = {"algo": spec.algo, "task": spec.task, "seed": spec.seed, "timesteps": self.num_timesteps}
-            row["env_steps"] = self.num_timesteps // n_agents
-            row.update({key: value for key, value in self.last_summary.items() if not key.endswith("_std")})
-            row.update({key: value for key, value in self.last_summary.items() if key.endswith("_std")})
-            rows.append(row)
-            write_rows(evaluations_path, rows)
-            return keep_going
-
-    evaluator = RecordAndCheckpoint(
-        eval_env, spec.eval_episodes, spec.eval_freq, main_metric=get_task_spec(spec.task).main_metric, verbose=0
-    )
-    evaluator.last_eval_timestep = int(rows[-1]["timesteps"]) if rows else 0
+    evaluator.resumed_at = done_steps
     remaining = spec.n_timesteps - done_steps
-    callback_list: list[BaseCallback] = [*callbacks, evaluator]
     if remaining > 0:
         if done_steps == 0:
             evaluator.init_callback(model)
             evaluator.evaluate()  # the curve starts at 0 steps
-        model.learn(remaining, callback=callback_list, reset_num_timesteps=done_steps == 0)
+        experiment.learn(remaining, callbacks=[evaluator], reset_num_timesteps=done_steps == 0)
     if not rows or rows[-1]["timesteps"] < model.num_timesteps:
         evaluator.evaluate()  # final evaluation
-    env.close()
-    eval_env.close()
+    experiment.close()
     wall = time.time() - start
     (path / "done.json").write_text(json.dumps({"wall_s": round(wall, 1), "timesteps": model.num_timesteps}))
     if checkpoint.is_file():
@@ -410,13 +444,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sb3_saeir.benchmark: error: unknown methods {unknown}; valid: {', '.join(sorted(ALGOS))}", file=sys.stderr)
         return 2
     from sb3_saeir.envs import list_tasks
-    from sb3_saeir.train import parse_params
 
     unknown = [task for task in args.tasks if task not in list_tasks()]
     if unknown:
         print(f"sb3_saeir.benchmark: error: unknown tasks {unknown}; valid: {', '.join(list_tasks())}", file=sys.stderr)
         return 2
-    params = parse_params(args.params)
+    try:
+        params = parse_params(args.params)
+        for algo in args.algos:
+            for task in args.tasks:
+                check_hyperparams(algo, load_hyperparams(algo, task), params)
+    except (ConfigError, KeyError) as error:
+        print(f"sb3_saeir.benchmark: error: {error.args[0] if isinstance(error, KeyError) else error}", file=sys.stderr)
+        return 2
     specs = [
         RunSpec(algo, task, seed, args.n_timesteps, args.n_games, args.eval_freq, args.eval_episodes, params)
         for task in args.tasks

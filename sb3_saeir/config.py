@@ -1,15 +1,19 @@
 """rl-zoo style YAML configs: one file per method in ``zoo_configs/``, one entry per task id.
 
 Entry keys (rl-zoo's vocabulary): ``n_timesteps`` (agent-steps), ``n_envs`` (number of *games*; the vec env has
-``n_envs * n_agents`` slots), ``policy``, ``policy_kwargs`` (a dict or a string evaluated with ``nn`` in scope, as
-rl-zoo does), ``env_kwargs``, ``callback`` (``"module.Class"`` or ``{"module.Class": {kwargs}}`` or a list of these);
-every other key is a constructor argument of the method's algorithm class.
+``n_envs * n_agents`` slots), ``num_cpus`` (env worker processes, 0 by default), ``policy``, ``policy_kwargs`` (a dict
+or a string evaluated with ``nn`` in scope, as rl-zoo does), ``env_kwargs``, ``callback`` (``"module.Class"`` or
+``{"module.Class": {kwargs}}`` or a list of these); every other key is a constructor argument of the method's
+algorithm class.
 """
 
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
+import types
+import typing
 from pathlib import Path
 from typing import Any
 
@@ -36,8 +40,100 @@ ALGOS: dict[str, type[BaseAlgorithm]] = {
     "ippo": PPO,
 }
 
-# Keys consumed here rather than passed to the algorithm.
-_SPECIAL_KEYS = ("n_timesteps", "n_envs", "env_kwargs", "policy", "policy_kwargs", "callback")
+# Keys of a config entry that are not constructor arguments of the algorithm.
+CONFIG_KEYS = ("n_timesteps", "n_envs", "num_cpus", "env_kwargs", "policy", "policy_kwargs", "callback")
+
+
+class ConfigError(ValueError):
+    """A bad command line or config: the message names the problem and the valid choices."""
+
+
+def parse_params(items: list[str] | None) -> dict[str, Any]:
+    """``-params key:value key=value ...`` -> dict, values parsed as YAML (numbers, booleans, lists, dicts)."""
+    params: dict[str, Any] = {}
+    for item in items or []:
+        separator = min((i for i in (item.find(":"), item.find("=")) if i > 0), default=-1)
+        if separator < 0:
+            raise ConfigError(f"-params entry {item!r} is not key:value (or key=value).")
+        key, raw = item[:separator], item[separator + 1 :]
+        try:
+            params[key] = yaml.safe_load(raw)
+        except yaml.YAMLError as error:
+            raise ConfigError(f"-params {key}: cannot parse {raw!r} ({error}).") from error
+    return params
+
+
+def valid_keys(algo: str) -> list[str]:
+    """Config keys accepted for a method: the special keys plus the algorithm's constructor arguments."""
+    excluded = {"policy", "env", "_init_setup_model", "args", "kwargs"}
+    return sorted({*CONFIG_KEYS, *(name for name in _constructor_parameters(algo) if name not in excluded)})
+
+
+def _constructor_parameters(algo: str) -> dict[str, inspect.Parameter]:
+    """Constructor parameters of a method's algorithm class (every class spells out its full signature)."""
+    return dict(inspect.signature(ALGOS[algo]).parameters)
+
+
+def _type_ok(value: Any, reference: Any) -> bool:
+    if reference is None or value is None:
+        return True
+    if isinstance(reference, bool):
+        return isinstance(value, bool)
+    if isinstance(reference, (int, float)):
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if isinstance(reference, str):
+        return isinstance(value, str)
+    if isinstance(reference, (list, tuple)):
+        return isinstance(value, (list, tuple))
+    if isinstance(reference, dict):
+        return isinstance(value, dict)
+    return True
+
+
+def _matches(value: Any, annotation: Any) -> bool:
+    """Whether a YAML value fits a constructor annotation (int accepted for float; unknown annotations accept)."""
+    if isinstance(annotation, str):  # postponed annotations, e.g. "float | None"
+        options = [option.strip() for option in annotation.split("|")]
+    elif isinstance(annotation, (type, types.UnionType)):
+        members = typing.get_args(annotation) if isinstance(annotation, types.UnionType) else (annotation,)
+        options = ["None" if member is type(None) else getattr(member, "__name__", "?") for member in members]
+    else:
+        return True
+    checks = {"float": (int, float), "int": (int,), "bool": (bool,), "str": (str,), "None": (type(None),)}
+    if any(option not in checks for option in options):
+        return True  # Schedules, classes, dicts...: left to the algorithm
+    if isinstance(value, bool) and "bool" not in options:
+        return False
+    return any(isinstance(value, checks[option]) for option in options)
+
+
+def _annotations(algo: str) -> dict[str, Any]:
+    """Constructor annotations of a method's algorithm class."""
+    return {
+        name: parameter.annotation
+        for name, parameter in _constructor_parameters(algo).items()
+        if parameter.annotation is not inspect.Parameter.empty
+    }
+
+
+def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[str, Any]) -> None:
+    """Unknown keys and values of the wrong type raise a :class:`ConfigError` naming the valid choices."""
+    keys = valid_keys(algo)
+    for key in [*hyperparams, *overrides]:
+        if key not in keys:
+            raise ConfigError(f"unknown config key {key!r} for {algo}; valid keys: {', '.join(keys)}.")
+    annotations = _annotations(algo)
+    for key, value in overrides.items():
+        reference = hyperparams.get(key)
+        if reference is not None and not _type_ok(value, reference):
+            expected = f"{type(reference).__name__} (like the configured {reference!r})"
+        elif reference is None and not _matches(value, annotations.get(key)):
+            expected = str(annotations[key])
+        else:
+            continue
+        raise ConfigError(f"hyperparameter {key}={value!r} has type {type(value).__name__}, expected {expected}.")
+    if "n_envs" in overrides and (not isinstance(overrides["n_envs"], int) or overrides["n_envs"] < 1):
+        raise ConfigError(f"n_envs (number of games) must be a positive integer, got {overrides['n_envs']!r}.")
 
 
 def config_dir() -> Path:
@@ -122,8 +218,9 @@ def build_model(
     games = int(n_games if n_games is not None else params.get("n_envs", 8))
     resolved["n_envs"] = games
     if env is None:
-        env = make_multiagent_vec_env(task, n_games=games, seed=seed, **(params.get("env_kwargs") or {}))
-    algo_kwargs = {key: value for key, value in params.items() if key not in _SPECIAL_KEYS}
+        num_cpus = int(params.get("num_cpus", 0))
+        env = make_multiagent_vec_env(task, n_games=games, seed=seed, num_cpus=num_cpus, **(params.get("env_kwargs") or {}))
+    algo_kwargs = {key: value for key, value in params.items() if key not in CONFIG_KEYS}
     if "intrinsic_kwargs" in algo_kwargs:
         algo_kwargs["intrinsic_kwargs"] = parse_policy_kwargs(algo_kwargs["intrinsic_kwargs"])
     config_games = params.get("n_envs", games)

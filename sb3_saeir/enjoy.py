@@ -2,8 +2,9 @@
 
     python -m sb3_saeir.enjoy --algo saeir_ppo --task cn-sparse-n3 -f logs -n 100 --gif replay.gif
 
-By default it loads the final model of the latest run in ``<log-folder>/<algo>/<task>_<run>/``; ``--exp-id`` picks a
-run, ``--load-best`` its best model, ``--model`` any saved zip.
+By default it loads the final model of the latest run that has one in ``<log-folder>/<algo>/<task>_<run>/``;
+``--exp-id`` picks a run, ``--load-best`` its best model, ``--model`` any saved zip. The task's keyword arguments come
+from the run's ``<task>/config.yml`` (``env_kwargs``) unless ``--env-kwargs`` gives them.
 """
 
 from __future__ import annotations
@@ -15,47 +16,72 @@ from typing import Any
 
 import numpy as np
 import torch as th
+import yaml
 
+from sb3_saeir.common.extras import require_extra
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.config import ALGOS
-from sb3_saeir.envs import list_tasks
+from sb3_saeir.config import ALGOS, ConfigError, parse_params
+from sb3_saeir.envs import list_tasks, make_task
 from sb3_saeir.evaluation import evaluate_multiagent_policy
+from sb3_saeir.experiment import find_model
+
+__all__ = ["find_model", "main", "record_gif"]
 
 
-def find_model(log_folder: str, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:
-    """Path of a run's final (or best) model; ``exp_id=0`` means the latest run."""
-    algo_folder = Path(log_folder) / algo
-    runs = sorted(
-        (int(p.name.rsplit("_", 1)[1]), p) for p in algo_folder.glob(f"{task}_*") if p.name.rsplit("_", 1)[1].isdigit()
-    )
-    if not runs:
-        raise FileNotFoundError(f"no run of {algo} on {task} in {algo_folder}.")
-    folder = dict(runs)[exp_id] if exp_id else runs[-1][1]
-    path = folder / ("best_model.zip" if load_best else f"{task}.zip")
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist.")
-    return path
+def record_gif(
+    model: Any,
+    task: str,
+    path: str,
+    n_episodes: int = 1,
+    seed: int = 0,
+    deterministic: bool = True,
+    fps: float = 10.0,
+    env_kwargs: dict[str, Any] | None = None,
+) -> int:
+    """Write a looping GIF of one game playing ``n_episodes`` episodes (needs a task that renders ``rgb_array``).
 
+    The game runs as its own PettingZoo env (no automatic reset), so each episode's frames go from its first state to
+    its last one.
 
-def record_gif(model: Any, task: str, path: str, n_episodes: int = 1, seed: int = 0, deterministic: bool = True) -> int:
-    """Write a GIF of game 0 playing ``n_episodes`` episodes (needs a task that renders ``rgb_array``).
-
+    :param model: anything with SB3's ``predict(obs, state, episode_start, deterministic)``
+    :param task: task id
+    :param path: GIF path
+    :param n_episodes: episodes to record, one after the other
+    :param seed: seed of the first episode (episode ``i`` uses ``seed + i``)
+    :param deterministic: greedy actions
+    :param fps: frames per second (each frame lasts ``1000 / fps`` ms)
+    :param env_kwargs: the task's keyword arguments (e.g. the config's ``env_kwargs``)
     :return: number of frames written
     """
-    import imageio.v2 as imageio
-
-    env = make_multiagent_vec_env(task, n_games=1, seed=seed, render_mode="rgb_array")
-    observations = env.reset()
-    frames = [env.render()]
-    states, starts, finished = None, np.ones(env.num_envs, dtype=bool), 0
-    while finished < n_episodes:
-        actions, states = model.predict(observations, state=states, episode_start=starts, deterministic=deterministic)
-        observations, _, starts, infos = env.step(actions)
-        finished += int(any("episode" in info for info in infos))
-        frames.append(env.render())
-    env.close()
-    imageio.mimsave(path, [frame for frame in frames if frame is not None], duration=0.1)
+    imageio = require_extra("imageio.v2", "plots", "writing a GIF")
+    game = make_task(task, render_mode="rgb_array", **(env_kwargs or {}))
+    frames = []
+    for episode in range(n_episodes):
+        observations, _ = game.reset(seed=seed + episode)
+        agents = list(game.possible_agents)
+        states, starts = None, np.ones(len(agents), dtype=bool)
+        frames.append(game.render())
+        while game.agents:
+            obs = np.stack([observations[agent] for agent in agents])  # (N, d) in agent order
+            actions, states = model.predict(obs, state=states, episode_start=starts, deterministic=deterministic)
+            starts = np.zeros(len(agents), dtype=bool)
+            observations, _, _, _, _ = game.step({agent: action for agent, action in zip(agents, actions)})
+            frames.append(game.render())
+    game.close()
+    frames = [frame for frame in frames if frame is not None]
+    if not frames:
+        raise ValueError(f"Task {task!r} rendered no rgb_array frames: it cannot be recorded as a GIF.")
+    # imageio >= 2.28 reads duration in milliseconds per frame; loop=0 loops forever
+    imageio.mimsave(path, frames, duration=1000.0 / fps, loop=0)
     return len(frames)
+
+
+def run_env_kwargs(model_path: Path, task: str) -> dict[str, Any]:
+    """The ``env_kwargs`` of the run a model was saved in (``<run>/<task>/config.yml``), or ``{}``."""
+    config = model_path.parent / task / "config.yml"
+    if not config.is_file():
+        return {}
+    return dict((yaml.safe_load(config.read_text()) or {}).get("env_kwargs") or {})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,6 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--gif", default=None, help="write a GIF of one game to this path")
     parser.add_argument("--gif-episodes", type=int, default=1)
     parser.add_argument("--num-threads", type=int, default=1)
+    parser.add_argument(
+        "--env-kwargs", nargs="+", default=None, help="task keyword arguments key:value (default: the run's env_kwargs)"
+    )
     args = parser.parse_args(argv)
     th.set_num_threads(args.num_threads)
     if args.algo not in ALGOS:
@@ -82,11 +111,14 @@ def main(argv: list[str] | None = None) -> int:
         path = (
             Path(args.model) if args.model else find_model(args.log_folder, args.algo, args.task, args.exp_id, args.load_best)
         )
-    except FileNotFoundError as error:
+        if not path.is_file():
+            raise FileNotFoundError(f"--model {path} is not a file.")
+        env_kwargs = parse_params(args.env_kwargs) if args.env_kwargs else run_env_kwargs(path, args.task)
+    except (FileNotFoundError, ConfigError) as error:
         print(f"sb3_saeir.enjoy: error: {error}", file=sys.stderr)
         return 2
     model = ALGOS[args.algo].load(path, device="cpu")
-    env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed)
+    env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed, **env_kwargs)
     summary = evaluate_multiagent_policy(model, env, args.n_episodes, deterministic=not args.stochastic)
     env.close()
     print(f"{path}: {int(summary['n_episodes'])} episodes")
@@ -94,7 +126,9 @@ def main(argv: list[str] | None = None) -> int:
         if key.endswith("_mean"):
             print(f"  {key[:-5]:<22} {summary[key]:9.4f} +/- {summary[key[:-5] + '_std']:.4f}")
     if args.gif:
-        n_frames = record_gif(model, args.task, args.gif, args.gif_episodes, args.seed, not args.stochastic)
+        n_frames = record_gif(
+            model, args.task, args.gif, args.gif_episodes, args.seed, not args.stochastic, env_kwargs=env_kwargs
+        )
         print(f"GIF: {args.gif} ({n_frames} frames)")
     return 0
 

@@ -113,6 +113,15 @@ def summarise_episodes(episodes: list[dict[str, float]]) -> dict[str, float]:
     return summary
 
 
+def score(summary: dict[str, float], metric: str) -> float:
+    """The value of a task's main metric in an evaluation summary (``"r"``: the team return); ``-inf`` if absent.
+
+    :param summary: a summary from :func:`evaluate_multiagent_policy`
+    :param metric: the task's main metric (``coverage_rate``, ``success`` or ``r``)
+    """
+    return summary["ep_rew_mean"] if metric == "r" else summary.get(f"{metric}_mean", -np.inf)
+
+
 def metric_name(key: str) -> str:
     """Logger name of an episode quantity: ``success`` -> ``success_rate``, others unchanged."""
     return "success_rate" if key == "success" else key
@@ -195,11 +204,11 @@ class MultiAgentEvalCallback(EventCallback):
         self.logger.dump(self.num_timesteps)
         if self.log_path is not None:
             self._save_evaluations()
-        score = summary["ep_rew_mean"] if self.main_metric == "r" else summary.get(f"{self.main_metric}_mean", -np.inf)
+        main_score = score(summary, self.main_metric)
         if self.verbose >= 1:
-            print(f"Eval num_timesteps={self.num_timesteps}, {self.main_metric}={score:.3f} over {len(episodes)} games")
-        if score > self.best_score:
-            self.best_score = score
+            print(f"Eval num_timesteps={self.num_timesteps}, {self.main_metric}={main_score:.3f} over {len(episodes)} games")
+        if main_score > self.best_score:
+            self.best_score = main_score
             if self.best_model_save_path is not None:
                 self.model.save(os.path.join(self.best_model_save_path, "best_model"))
             if self.callback is not None:

@@ -17,6 +17,7 @@ import os
 import random
 import socket
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,12 +25,11 @@ import optuna
 import sqlalchemy.exc
 from stable_baselines3.common.callbacks import BaseCallback
 
-from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.config import build_model, parse_policy_kwargs
-from sb3_saeir.envs import get_task_spec
-from sb3_saeir.evaluation import evaluate_multiagent_policy
-
-BONUS_METHODS = ("saeir_ppo", "rnd", "elign", "sae_only")
+from sb3_saeir.common.callbacks import EveryAgentSteps
+from sb3_saeir.config import parse_policy_kwargs
+from sb3_saeir.envs import get_task_spec, make_task
+from sb3_saeir.evaluation import evaluate_multiagent_policy, score
+from sb3_saeir.experiment import EVAL_SEED_OFFSET, Experiment
 
 
 def sample_ppo_params(trial: optuna.Trial) -> dict[str, Any]:
@@ -47,29 +47,57 @@ def sample_saeir_ppo_params(trial: optuna.Trial, n_agents: int) -> dict[str, Any
     params = sample_ppo_params(trial)
     params["intrinsic_coef"] = trial.suggest_float("intrinsic_coef", 1e-2, 1.0, log=True)
     params["policy_kwargs"] = {
-        "group_size": trial.suggest_int("group_size", 2, max(2, n_agents)),
+        # k < N: with k = N every group hyperedge holds the whole team and the group critic copies the team critic
+        "group_size": trial.suggest_int("group_size", 2, max(2, n_agents - 1)),
         "n_edge_types": trial.suggest_int("n_edge_types", 1, 4),
     }
     return params
 
 
+def sample_mshg_only_params(trial: optuna.Trial, n_agents: int) -> dict[str, Any]:
+    """MSHG-only ablation: SAEIR's space without the bonus coefficient."""
+    params = sample_saeir_ppo_params(trial, n_agents)
+    params.pop("intrinsic_coef")
+    return params
+
+
+def sample_ippo_params(trial: optuna.Trial, n_agents: int) -> dict[str, Any]:
+    """IPPO (SB3 PPO): learning rate, epochs, entropy coefficient."""
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 1e-4, 2e-3, log=True),
+        "n_epochs": trial.suggest_categorical("n_epochs", [5, 10, 15]),
+        "ent_coef": trial.suggest_float("ent_coef", 1e-3, 5e-2, log=True),
+    }
+
+
+def sample_mappo_params(trial: optuna.Trial, n_agents: int) -> dict[str, Any]:
+    """MAPPO and SN-MAPPO: the shared space."""
+    return sample_ppo_params(trial)
+
+
+def sample_bonus_params(trial: optuna.Trial, n_agents: int) -> dict[str, Any]:
+    """Methods with a bonus on MAPPO's critic (RND, Elign, SAE-only): the shared space plus the bonus coefficient."""
+    params = sample_ppo_params(trial)
+    params["intrinsic_coef"] = trial.suggest_float("intrinsic_coef", 1e-2, 2.0, log=True)
+    return params
+
+
+# Method -> its search space (rl-zoo's HYPERPARAMS_SAMPLER).
+HYPERPARAMS_SAMPLER: dict[str, Callable[[optuna.Trial, int], dict[str, Any]]] = {
+    "saeir_ppo": sample_saeir_ppo_params,
+    "mshg_only": sample_mshg_only_params,
+    "ippo": sample_ippo_params,
+    "mappo": sample_mappo_params,
+    "sn_mappo": sample_mappo_params,
+    "rnd": sample_bonus_params,
+    "elign": sample_bonus_params,
+    "sae_only": sample_bonus_params,
+}
+
+
 def sample_params(trial: optuna.Trial, algo: str, n_agents: int) -> dict[str, Any]:
     """Hyperparameters of one trial for a method."""
-    if algo in ("saeir_ppo", "mshg_only"):
-        params = sample_saeir_ppo_params(trial, n_agents)
-        if algo == "mshg_only":
-            params.pop("intrinsic_coef")
-        return params
-    if algo == "ippo":
-        return {
-            "learning_rate": trial.suggest_float("learning_rate", 1e-4, 2e-3, log=True),
-            "n_epochs": trial.suggest_categorical("n_epochs", [5, 10, 15]),
-            "ent_coef": trial.suggest_float("ent_coef", 1e-3, 5e-2, log=True),
-        }
-    params = sample_ppo_params(trial)
-    if algo in BONUS_METHODS:
-        params["intrinsic_coef"] = trial.suggest_float("intrinsic_coef", 1e-2, 2.0, log=True)
-    return params
+    return HYPERPARAMS_SAMPLER[algo](trial, n_agents)
 
 
 def merge_params(hyperparams: dict[str, Any], sampled: dict[str, Any]) -> dict[str, Any]:
@@ -84,26 +112,20 @@ def merge_params(hyperparams: dict[str, Any], sampled: dict[str, Any]) -> dict[s
 
 
 class TrialEvalCallback(BaseCallback):
-    """Evaluate every ``eval_freq`` agent-steps, report to Optuna, stop the run when the pruner says so."""
+    """Evaluate (each time it runs), report to Optuna, stop the run when the pruner says so. Wrapped in
+    :class:`~sb3_saeir.common.callbacks.EveryAgentSteps` to run every ``eval_freq`` agent-steps."""
 
-    def __init__(self, trial: optuna.Trial, eval_env: Any, n_episodes: int, eval_freq: int, metric: str) -> None:
+    def __init__(self, trial: optuna.Trial, eval_env: Any, n_episodes: int, metric: str) -> None:
         super().__init__()
-        self.trial, self.eval_env, self.n_episodes, self.eval_freq, self.metric = (
-            trial,
-            eval_env,
-            n_episodes,
-            eval_freq,
-            metric,
-        )
-        self.last = 0
+        self.trial = trial
+        self.eval_env = eval_env
+        self.n_episodes = n_episodes
+        self.metric = metric
         self.n_evaluations = 0
         self.last_score = float("-inf")
         self.is_pruned = False
 
     def _on_step(self) -> bool:
-        if self.num_timesteps - self.last < self.eval_freq:
-            return True
-        self.last = self.num_timesteps
         self.last_score = score(evaluate_multiagent_policy(self.model, self.eval_env, self.n_episodes), self.metric)
         self.n_evaluations += 1
         self.trial.report(self.last_score, self.n_evaluations)
@@ -113,29 +135,27 @@ class TrialEvalCallback(BaseCallback):
         return True
 
 
-def score(summary: dict[str, float], metric: str) -> float:
-    """The value of the task's main metric in an evaluation summary."""
-    return summary["ep_rew_mean"] if metric == "r" else summary[f"{metric}_mean"]
-
-
-def objective_factory(args: argparse.Namespace, hyperparams: dict[str, Any]) -> Any:
+def objective_factory(args: argparse.Namespace, hyperparams: dict[str, Any]) -> Callable[[optuna.Trial], float]:
+    """The Optuna objective: one :class:`~sb3_saeir.experiment.Experiment` per trial, with sampled hyperparameters,
+    evaluated ``--n-evaluations`` times (for the pruner), scored by the task's main metric at the end."""
     metric = get_task_spec(args.task).main_metric
-    env_kwargs = dict(hyperparams.get("env_kwargs") or {})
-    n_agents = make_multiagent_vec_env(args.task, n_games=1, **env_kwargs).n_agents
+    probe = make_task(args.task, **dict(hyperparams.get("env_kwargs") or {}))
+    n_agents = len(probe.possible_agents)
+    probe.close()
     n_timesteps = int(hyperparams.get("n_timesteps", 1e5))
 
     def objective(trial: optuna.Trial) -> float:
         trial.set_user_attr("worker", f"{socket.gethostname()}:{os.getpid()}")
         params = merge_params(hyperparams, sample_params(trial, args.algo, n_agents))
-        model, env, callbacks, _ = build_model(args.algo, args.task, params, seed=args.seed + trial.number, verbose=0)
-        eval_env = make_multiagent_vec_env(args.task, n_games=min(args.eval_episodes, 10), seed=10_000, **env_kwargs)
-        evaluator = TrialEvalCallback(trial, eval_env, args.eval_episodes, max(1, n_timesteps // args.n_evaluations), metric)
+        experiment = Experiment(args.algo, args.task, params, seed=args.seed + trial.number)
+        experiment.build(verbose=0)
+        eval_env = experiment.make_eval_env(args.eval_episodes, seed=EVAL_SEED_OFFSET)
+        evaluator = TrialEvalCallback(trial, eval_env, args.eval_episodes, metric)
         try:
-            model.learn(n_timesteps, callback=[*callbacks, evaluator])
-            final = score(evaluate_multiagent_policy(model, eval_env, args.eval_episodes), metric)
+            experiment.learn(n_timesteps, callbacks=[EveryAgentSteps(evaluator, max(1, n_timesteps // args.n_evaluations))])
+            final = score(evaluate_multiagent_policy(experiment.model, eval_env, args.eval_episodes), metric)
         finally:
-            env.close()
-            eval_env.close()
+            experiment.close()
         if evaluator.is_pruned:
             raise optuna.TrialPruned()
         return final

@@ -164,3 +164,16 @@ def test_two_workers_share_a_postgres_study(postgres_url, tmp_path):
     assert len(workers_seen) == 2, workers_seen  # both processes contributed trials
     assert study.best_trial.value == max(t.value for t in complete)
     assert not (tmp_path / "w0" / "saeir_ppo").exists() or not list((tmp_path / "w0" / "saeir_ppo").glob("*.db"))
+
+
+def test_every_method_has_a_search_space_and_group_size_stays_below_n_agents():
+    from sb3_saeir.config import ALGOS
+    from sb3_saeir.hyperparams_opt import HYPERPARAMS_SAMPLER, sample_params
+
+    assert set(HYPERPARAMS_SAMPLER) == set(ALGOS)
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    for _ in range(20):
+        trial = study.ask()
+        group_size = sample_params(trial, "saeir_ppo", n_agents=3)["policy_kwargs"]["group_size"]
+        assert 2 <= group_size < 3  # k = N would make the group critic a copy of the team critic
+        study.tell(trial, 0.0)

@@ -43,3 +43,36 @@ class EpisodeMetricsCallback(BaseCallback):
     def _on_rollout_end(self) -> None:
         for name, value in episode_metric_means(list(self.model.ep_info_buffer or [])).items():
             self.logger.record(f"rollout/{name}", value)
+
+
+class EveryAgentSteps(BaseCallback):
+    """Run a callback every ``frequency`` agent-steps.
+
+    SB3's own frequencies (``CheckpointCallback(save_freq=...)``, ``EvalCallback(eval_freq=...)``) count calls of
+    ``env.step``, and one call of a multi-agent vec env is ``n_games * n_agents`` agent-steps; wrap such a callback
+    (built with frequency 1) to count agent-steps instead::
+
+        EveryAgentSteps(CheckpointCallback(save_freq=1, save_path="logs"), frequency=100_000)
+
+    :param callback: the callback to run
+    :param frequency: agent-steps (``model.num_timesteps``) between two runs
+    """
+
+    def __init__(self, callback: BaseCallback, frequency: int) -> None:
+        super().__init__()
+        if frequency < 1:
+            raise ValueError(f"frequency must be a positive number of agent-steps, got {frequency}.")
+        self.callback = callback
+        self.frequency = frequency
+        self.last = 0
+
+    def _init_callback(self) -> None:
+        self.callback.init_callback(self.model)
+        self.last = self.num_timesteps
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self.last >= self.frequency:
+            self.last = self.num_timesteps
+            self.callback.update_locals(self.locals)
+            return self.callback.on_step()
+        return True

@@ -1,0 +1,233 @@
+"""One experiment object behind every command line: a method's config on a task, built, trained, evaluated, saved.
+
+:class:`Experiment` is what ``python -m sb3_saeir.train``, ``python -m sb3_saeir.benchmark`` and the Optuna trials
+(``--optimize``) share, as rl-zoo3's ``ExperimentManager`` is for rl-zoo3: the training env, the evaluation env,
+the model from the packaged (or given) config, the callbacks, ``learn`` and ``save``. It is also the shortest way to
+run a packaged config from Python::
+
+    experiment = Experiment("saeir_ppo", "cn-sparse-n3", seed=0, n_games=16)
+    experiment.build()
+    experiment.learn(200_000)
+    experiment.save("saeir_cn3.zip")
+
+The run-folder helpers (rl-zoo's ``<log-folder>/<algo>/<task>_<run>`` layout) live here too.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
+from sb3_saeir.config import ALGOS, build_model, load_hyperparams
+from sb3_saeir.envs import get_task_spec
+from sb3_saeir.evaluation import MultiAgentEvalCallback
+
+# Seed offset of evaluation envs: evaluation games never replay the training games' seeds.
+EVAL_SEED_OFFSET = 10_000
+# At most this many games play an evaluation in parallel.
+MAX_EVAL_GAMES = 10
+
+
+class Experiment:
+    """A method's config entry on a task: builds the envs and the model, trains, evaluates and saves.
+
+    :param algo: method name (a key of :data:`sb3_saeir.config.ALGOS`, e.g. ``"saeir_ppo"``)
+    :param task: task id (e.g. ``"cn-sparse-n3"``)
+    :param hyperparams: the config entry (default: the packaged ``zoo_configs/<algo>.yml`` entry of ``task``)
+    :param seed: seed of the model and the training env (game ``g`` gets ``seed + g``)
+    :param log_folder: the run's folder (``None``: nothing written by :meth:`build`; see :func:`next_run_folder`)
+    :param n_games: override the config's ``n_envs`` (number of games)
+    :param num_cpus: env worker processes of the training env (0: every game in this process); overrides the config's
+        ``num_cpus``
+    """
+
+    def __init__(
+        self,
+        algo: str,
+        task: str,
+        hyperparams: dict[str, Any] | None = None,
+        seed: int = 0,
+        log_folder: str | Path | None = None,
+        n_games: int | None = None,
+        num_cpus: int | None = None,
+    ) -> None:
+        if algo not in ALGOS:
+            raise KeyError(f"Unknown algorithm {algo!r}. Valid choices: {', '.join(sorted(ALGOS))}.")
+        self.algo = algo
+        self.task = task
+        self.hyperparams = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
+        self.seed = seed
+        self.log_folder = Path(log_folder) if log_folder is not None else None
+        self.n_games = int(n_games if n_games is not None else self.hyperparams.get("n_envs", 8))
+        self.num_cpus = int(num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0))
+        self.model: BaseAlgorithm | None = None
+        self.env: VecEnv | None = None
+        self.config_callbacks: list[BaseCallback] = []
+        self.resolved_hyperparams: dict[str, Any] = {}
+        self._eval_envs: list[VecEnv] = []
+
+    # ------------------------------------------------------------------------------------------------ settings
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """The task's keyword arguments from the config (``env_kwargs``)."""
+        return dict(self.hyperparams.get("env_kwargs") or {})
+
+    @property
+    def n_timesteps(self) -> int:
+        """Training budget in agent-steps (the config's ``n_timesteps``)."""
+        return int(self.hyperparams.get("n_timesteps", 1_000_000))
+
+    @property
+    def main_metric(self) -> str:
+        """The task's main metric (``coverage_rate``, ``success`` or ``r``)."""
+        return get_task_spec(self.task).main_metric
+
+    # ------------------------------------------------------------------------------------------------ envs
+    def make_env(self, monitor: bool = False) -> VecEnv:
+        """The training env: ``n_games`` games seeded from ``seed``; with ``monitor``, a
+        :class:`~sb3_saeir.common.vec_env.MultiAgentVecMonitor` writing ``games.monitor.csv`` into the log folder."""
+        env: VecEnv = make_multiagent_vec_env(
+            self.task, n_games=self.n_games, seed=self.seed, num_cpus=self.num_cpus, **self.env_kwargs
+        )
+        if monitor and self.log_folder is not None:
+            env = MultiAgentVecMonitor(env, str(self.log_folder / "games"), env_id=self.task)
+        return env
+
+    def make_eval_env(self, n_episodes: int, seed: int | None = None) -> VecEnv:
+        """An evaluation env of ``min(n_episodes, 10)`` games (closed by :meth:`close`).
+
+        :param n_episodes: game episodes per evaluation
+        :param seed: base seed (default ``10_000 + seed``, apart from the training games)
+        """
+        eval_seed = EVAL_SEED_OFFSET + self.seed if seed is None else seed
+        env = make_multiagent_vec_env(
+            self.task, n_games=max(1, min(n_episodes, MAX_EVAL_GAMES)), seed=eval_seed, **self.env_kwargs
+        )
+        self._eval_envs.append(env)
+        return env
+
+    def eval_callback(
+        self, eval_freq: int, n_episodes: int, save_best: bool = True, verbose: int = 0
+    ) -> MultiAgentEvalCallback:
+        """Evaluation every ``eval_freq`` agent-steps on a fresh eval env; ``evaluations.npz`` and (with
+        ``save_best``) ``best_model.zip`` by the task's main metric in the log folder."""
+        folder = str(self.log_folder) if self.log_folder is not None else None
+        return MultiAgentEvalCallback(
+            self.make_eval_env(n_episodes),
+            n_eval_episodes=n_episodes,
+            eval_freq=eval_freq,
+            main_metric=self.main_metric,
+            log_path=folder,
+            best_model_save_path=folder if save_best else None,
+            verbose=verbose,
+        )
+
+    # ------------------------------------------------------------------------------------------------ model
+    def build(self, env: VecEnv | None = None, monitor: bool = False, **model_kwargs: Any) -> BaseAlgorithm:
+        """Build the training env (unless given) and the model from the config.
+
+        :param env: use this multi-agent vec env instead of :meth:`make_env`
+        :param monitor: wrap the training env in a monitor writing into the log folder
+        :param model_kwargs: algorithm arguments that override the config (``verbose``, ``device``, ...)
+        :return: the model (also ``self.model``; the env is ``self.env``)
+        """
+        self.env = env if env is not None else self.make_env(monitor=monitor)
+        self.model, _, self.config_callbacks, self.resolved_hyperparams = build_model(
+            self.algo, self.task, self.hyperparams, n_games=self.n_games, seed=self.seed, env=self.env, **model_kwargs
+        )
+        return self.model
+
+    def load(self, path: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> BaseAlgorithm:
+        """Load a saved model of this method onto the training env (built if needed), to continue training it.
+
+        :param path: the model zip
+        :param device: torch device
+        :param tensorboard_log: tensorboard log folder
+        """
+        if self.env is None:
+            self.env = self.make_env()
+        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log)
+        self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
+        return self.model
+
+    def learn(
+        self,
+        total_timesteps: int | None = None,
+        callbacks: list[BaseCallback] | None = None,
+        progress_bar: bool = False,
+        reset_num_timesteps: bool = True,
+    ) -> BaseAlgorithm:
+        """Train the built model with the config's callbacks plus ``callbacks``.
+
+        :param total_timesteps: agent-steps (default: the config's ``n_timesteps``)
+        :param callbacks: extra callbacks (evaluation, checkpoints, ...)
+        :param progress_bar: SB3's progress bar
+        :param reset_num_timesteps: start the step counter at 0 (``False`` to continue a loaded model)
+        """
+        if self.model is None:
+            raise RuntimeError("Experiment.learn: call build() (or load()) first.")
+        return self.model.learn(
+            self.n_timesteps if total_timesteps is None else total_timesteps,
+            callback=[*self.config_callbacks, *(callbacks or [])],
+            progress_bar=progress_bar,
+            reset_num_timesteps=reset_num_timesteps,
+        )
+
+    def save(self, path: str | Path) -> Path:
+        """Save the model; returns the zip's path."""
+        if self.model is None:
+            raise RuntimeError("Experiment.save: nothing to save, call build() first.")
+        self.model.save(path)
+        path = Path(path)
+        return path if path.suffix == ".zip" else path.with_name(path.name + ".zip")
+
+    def close(self) -> None:
+        """Close the training env and every eval env this experiment made."""
+        for env in [self.env, *self._eval_envs]:
+            if env is not None:
+                env.close()
+        self.env = None
+        self._eval_envs = []
+
+
+# ---------------------------------------------------------------------------------------------------- run folders
+def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]:
+    """Run folders ``<log_folder>/<algo>/<task>_<run>`` by run number."""
+    runs = {}
+    for path in (Path(log_folder) / algo).glob(f"{task}_*"):
+        suffix = path.name[len(task) + 1 :]
+        if suffix.isdigit() and path.is_dir():
+            runs[int(suffix)] = path
+    return runs
+
+
+def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
+    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering)."""
+    return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
+
+
+def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:
+    """Path of a run's final (or best) model; ``exp_id=0`` means the latest run that has one.
+
+    :raises FileNotFoundError: naming the folder searched
+    """
+    runs = run_numbers(log_folder, algo, task)
+    if not runs:
+        raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo}.")
+    name = "best_model.zip" if load_best else f"{task}.zip"
+    if exp_id:
+        if exp_id not in runs:
+            raise FileNotFoundError(f"no run {exp_id} of {algo} on {task}; runs: {sorted(runs)}.")
+        path = runs[exp_id] / name
+        if not path.is_file():
+            raise FileNotFoundError(f"{path} does not exist.")
+        return path
+    with_model = [runs[number] / name for number in sorted(runs) if (runs[number] / name).is_file()]
+    if not with_model:
+        raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo} has a {name}.")
+    return with_model[-1]

@@ -14,8 +14,9 @@ from sb3_saeir.intrinsic import saeir_bonus
 
 
 def quadratic_prefix_loop(values: np.ndarray) -> np.ndarray:
-    """The released code's computation (spec §2.2): for every t, the entropy of the softmax over the first t and
-    t + 1 values, each prefix recomputed from scratch (vectorised over games, agents and scales)."""
+    """The released code's computation (``docs/method.md``, "The intrinsic reward"): for every t, the entropy of the
+    softmax over the first t and t + 1 values, each prefix recomputed from scratch (vectorised over games, agents and
+    scales)."""
     n_steps = values.shape[0]
 
     def prefix_entropy(n: int) -> np.ndarray:

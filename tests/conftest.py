@@ -1,4 +1,32 @@
-import pytest  # noqa: F401
+"""Shared fixtures: the tiny navigation env most tests train on, tiny algorithm budgets, a toy cooperative game."""
+
+import pytest
 import torch
 
+from sb3_saeir import make_multiagent_vec_env
+
 torch.set_num_threads(1)
+
+
+@pytest.fixture
+def env():
+    """``cn-sparse-n3`` with 2 games (6 agent slots), seeded."""
+    vec_env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
+    yield vec_env
+    vec_env.close()
+
+
+@pytest.fixture
+def tiny_kwargs():
+    """Algorithm arguments for a fast MAPPO / SAEIR_PPO: 10-step rollouts, one epoch, 8-wide networks."""
+    return dict(n_steps=10, n_epochs=1, policy_kwargs=dict(hidden_size=8))
+
+
+@pytest.fixture
+def toy_env():
+    """:class:`toy_envs.ToyMeetEnv` (2 agents, 6 steps) with 3 games through SuperSuit, seeded."""
+    from tests.toy_envs import ToyMeetEnv
+
+    vec_env = make_multiagent_vec_env(ToyMeetEnv, n_games=3, seed=0)
+    yield vec_env
+    vec_env.close()

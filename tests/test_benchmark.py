@@ -13,7 +13,7 @@ import pytest
 from sb3_saeir import benchmark
 from sb3_saeir.benchmark import RunSpec, execute_run, main, parse_seeds, run_folder
 
-TINY = ["-n", "200", "--n-games", "2", "--eval-freq", "100", "--eval-episodes", "2", "-params", "n_steps:10"]
+TINY_ARGV = ["-n", "200", "--n-games", "2", "--eval-freq", "100", "--eval-episodes", "2", "-params", "n_steps:10"]
 
 
 def read_csv(path):
@@ -24,7 +24,7 @@ def read_csv(path):
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    argv = ["--algos", "saeir_ppo", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY, "--jobs", "2"]
+    argv = ["--algos", "saeir_ppo", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY_ARGV, "--jobs", "2"]
     assert main([*argv, "--out", str(out), "--rliable"]) == 0
     return out, argv
 
@@ -98,7 +98,7 @@ def test_failing_run_does_not_stop_the_others(tmp_path, monkeypatch):
         return real(spec, folder)
 
     monkeypatch.setattr(benchmark, "execute_run", flaky)
-    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY, "--out", str(tmp_path)]
+    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY_ARGV, "--out", str(tmp_path)]
     assert main(argv) == 1
     assert "mappo/cn-sparse-n3_s2" in (tmp_path / "failures.txt").read_text()
     assert {r["seed"] for r in read_csv(tmp_path / "runs.csv")} == {"1"}
@@ -171,7 +171,7 @@ def ray_head():
 
 
 def test_ray_cluster_runs(ray_head, tmp_path):
-    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY, "--out", str(tmp_path)]
+    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY_ARGV, "--out", str(tmp_path)]
     assert main([*argv, "--ray-address", ray_head]) == 0
     rows = read_csv(tmp_path / "runs.csv")
     assert {r["seed"] for r in rows} == {"1", "2"}

@@ -43,7 +43,7 @@ def fill(buffer, rng, per_scale_rewards=False):
 
 
 def reference_gae(rewards, bonus, values, last_values, episode_starts, last_dones, gamma, lam, denorm):
-    """Hand-written scalar loop of spec §2.4 for one (env, scale) series at a time."""
+    """Hand-written scalar loop of docs/method.md "GAE per scale" for one (env, scale) series at a time."""
     n_steps, n_envs, n_scales = values.shape
     advantages = np.zeros_like(values)
     for env in range(n_envs):
@@ -151,7 +151,7 @@ class GroupRecorder:
 
 def test_every_training_hypergraph_is_one_game_at_one_step(monkeypatch):
     """Instrumentation: each (step, block) node set a critic sees in training equals the N agents of one game at one
-    step of the rollout (the authors' code mixes unrelated chunks, spec §1.13)."""
+    step of the rollout (the authors' code mixes unrelated chunks; docs/method.md, "Decisions")."""
     recorder = GroupRecorder(monkeypatch)
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=4, seed=0)
     model = SAEIR_PPO("MSHGPolicy", env, n_steps=20, n_epochs=2, n_minibatches=2, seed=0)

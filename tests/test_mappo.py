@@ -11,14 +11,7 @@ from sb3_saeir.common.policies import MAPPOPolicy, SNMAPPOPolicy
 from sb3_saeir.common.torch_layers import RecurrentValueCritic
 from sb3_saeir.intrinsic import saeir_bonus
 
-TINY = dict(n_steps=10, n_epochs=1)
-
-
-@pytest.fixture
-def env():
-    vec_env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
-    yield vec_env
-    vec_env.close()
+TINY_KWARGS = dict(n_steps=10, n_epochs=1)
 
 
 @pytest.mark.parametrize(
@@ -31,7 +24,7 @@ def env():
     ],
 )
 def test_methods_train_two_iterations(env, policy, kwargs, scales, bonus):
-    model = MAPPO(policy, env, seed=0, **TINY, **kwargs).learn(2 * 10 * env.num_envs)
+    model = MAPPO(policy, env, seed=0, **TINY_KWARGS, **kwargs).learn(2 * 10 * env.num_envs)
     assert model.num_timesteps == 2 * 10 * env.num_envs
     assert model.policy.scales == scales
     buffer = model.rollout_buffer
@@ -88,7 +81,7 @@ def test_spectral_norm_largest_singular_value_is_one(layers):
 def test_sn_policy_default_and_save_load(env, tmp_path):
     policy = SNMAPPOPolicy(spaces.Box(-1, 1, (18,)), spaces.Discrete(5), lambda _: 1e-3, n_agents=3)
     assert policy.spectral_norm == ("output",)
-    model = MAPPO("SNMAPPOPolicy", env, seed=0, **TINY).learn(10 * env.num_envs)
+    model = MAPPO("SNMAPPOPolicy", env, seed=0, **TINY_KWARGS).learn(10 * env.num_envs)
     obs = env.reset()
     model.save(tmp_path / "sn.zip")
     loaded = MAPPO.load(tmp_path / "sn.zip", env=env)

@@ -16,7 +16,7 @@ import sqlalchemy.exc
 from sb3_saeir.hyperparams_opt import create_or_load_study
 from sb3_saeir.train import main as train_main
 
-TINY = [
+TINY_ARGV = [
     "--task",
     "cn-sparse-n3",
     "--n-games",
@@ -35,7 +35,7 @@ TINY = [
 
 
 def test_local_sqlite_study(tmp_path):
-    argv = ["--algo", "saeir_ppo", *TINY, "--optimize", "--n-trials", "2", "--sampler", "random", "-f", str(tmp_path)]
+    argv = ["--algo", "saeir_ppo", *TINY_ARGV, "--optimize", "--n-trials", "2", "--sampler", "random", "-f", str(tmp_path)]
     assert train_main(argv) == 0
     database = tmp_path / "saeir_ppo" / "saeir_ppo_cn-sparse-n3.db"
     assert database.is_file()
@@ -131,7 +131,7 @@ def test_two_workers_share_a_postgres_study(postgres_url, tmp_path):
         "sb3_saeir.train",
         "--algo",
         "saeir_ppo",
-        *TINY,
+        *TINY_ARGV,
         "--optimize",
         "--n-trials",
         "2",

@@ -6,7 +6,8 @@ import torch as th
 from stable_baselines3.common.logger import configure
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
-from sb3_saeir.intrinsic.rnd import RNDCallback, true_next_observations
+from sb3_saeir.intrinsic.base import true_next_observations
+from sb3_saeir.intrinsic.rnd import RNDCallback
 
 
 def test_bonus_shrinks_on_trained_states_and_stays_high_on_unseen_ones():

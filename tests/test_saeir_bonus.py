@@ -8,7 +8,8 @@ from sb3_saeir.intrinsic import saeir_bonus
 
 
 def _code_reference_1d(series: np.ndarray) -> np.ndarray:
-    """Slow O(T^2) double loop of spec §2.2, with the code's 1e-8 clamps and plain exp."""
+    """Slow O(T^2) double loop of the released code (docs/method.md, "The intrinsic reward"), with the code's 1e-8
+    clamps and plain exp."""
     n_steps = len(series)
 
     def prefix_entropy(n: int) -> float:
@@ -27,7 +28,7 @@ def _code_reference_1d(series: np.ndarray) -> np.ndarray:
 
 def _shifted_code_reference_1d(series: np.ndarray) -> np.ndarray:
     """
-    O(T^2) reference of spec §2.2 with a max-shift in every prefix (safe for |v| ~ 1e3).
+    O(T^2) reference of the released code with a max-shift in every prefix (safe for |v| ~ 1e3).
 
     Returns the bonus and the margin H_t - H_{t+1}; near-ties (|margin| < 1e-9) are returned as NaN bonus,
     because there the rounding of this reference, not the maths, decides the comparison.

@@ -11,14 +11,7 @@ from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from sb3_saeir.intrinsic import SAEIRCallback, saeir_bonus
 from sb3_saeir.saeir_ppo.saeir_ppo import scale_advantage_weights
 
-TINY = dict(n_steps=10, n_epochs=1, policy_kwargs=dict(hidden_size=8))
-
-
-@pytest.fixture
-def env():
-    vec_env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
-    yield vec_env
-    vec_env.close()
+TINY_KWARGS = dict(n_steps=10, n_epochs=1, policy_kwargs=dict(hidden_size=8))
 
 
 @pytest.mark.parametrize("task", ["cn-sparse-n3", "cn-sparse-n4", SparseCooperativeNavigation])
@@ -38,7 +31,7 @@ def test_policy_aliases():
 def test_logs_task_metrics_intrinsic_reward_and_per_scale_losses(env, tmp_path):
     from stable_baselines3.common.logger import configure
 
-    model = SAEIR_PPO("MSHGPolicy", env, seed=0, **TINY)
+    model = SAEIR_PPO("MSHGPolicy", env, seed=0, **TINY_KWARGS)
     logger = configure(str(tmp_path), ["csv"])
     model.set_logger(logger)
     records = []
@@ -104,26 +97,26 @@ class CheckBonusInAdvantages(BaseCallback):
 
 def test_saeir_bonus_reaches_the_advantages(env):
     checker = CheckBonusInAdvantages(beta=0.5)
-    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_coef=0.5, seed=0, **TINY)
+    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_coef=0.5, seed=0, **TINY_KWARGS)
     model.learn(2 * 10 * env.num_envs, callback=checker)  # auto SAEIRCallback runs before the checker
     assert checker.checked == 2
 
 
 def test_explicit_saeir_callback_with_intrinsic_off(env):
     checker = CheckBonusInAdvantages(beta=0.2)
-    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_reward=None, seed=0, **TINY)
+    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_reward=None, seed=0, **TINY_KWARGS)
     # the checker comes first: every bonus is in the advantages before any callback's on_rollout_end, whatever the order
     model.learn(10 * env.num_envs, callback=[checker, SAEIRCallback(coef=0.2)])
     assert checker.checked == 1
 
 
 def test_no_bonus_when_off(env):
-    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_reward=None, seed=0, **TINY).learn(10 * env.num_envs)
+    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_reward=None, seed=0, **TINY_KWARGS).learn(10 * env.num_envs)
     assert not model.rollout_buffer.intrinsic_rewards.any()
 
 
 def test_predict_any_number_of_agents_with_state(env):
-    model = SAEIR_PPO("MSHGPolicy", env, seed=0, **TINY)
+    model = SAEIR_PPO("MSHGPolicy", env, seed=0, **TINY_KWARGS)
     obs = env.reset()
     actions, state = model.predict(obs, deterministic=True)
     assert actions.shape == (6,) and state.shape == (6, 8)
@@ -141,7 +134,7 @@ def test_predict_any_number_of_agents_with_state(env):
 
 
 def test_save_load_identical_actions(env, tmp_path):
-    model = SAEIR_PPO("MSHGPolicy", env, seed=0, **TINY).learn(2 * 10 * env.num_envs)
+    model = SAEIR_PPO("MSHGPolicy", env, seed=0, **TINY_KWARGS).learn(2 * 10 * env.num_envs)
     obs = env.reset()
     actions, _ = model.predict(obs, deterministic=True)
     model.save(tmp_path / "model.zip")
@@ -158,7 +151,7 @@ def test_save_load_identical_actions(env, tmp_path):
 
 def parameters_after_two_iterations(seed):
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2)
-    model = SAEIR_PPO("MSHGPolicy", env, seed=seed, **TINY).learn(2 * 10 * env.num_envs)
+    model = SAEIR_PPO("MSHGPolicy", env, seed=seed, **TINY_KWARGS).learn(2 * 10 * env.num_envs)
     env.close()
     return th.cat([p.detach().flatten() for p in model.policy.parameters()])
 
@@ -175,7 +168,7 @@ def test_callbacks_progress_bar_tensorboard(env, tmp_path):
         CheckpointCallback(save_freq=10, save_path=str(tmp_path / "ckpt"), name_prefix="saeir"),
         EvalCallback(eval_env, n_eval_episodes=3, eval_freq=10, best_model_save_path=str(tmp_path / "best")),
     ]
-    model = SAEIR_PPO("MSHGPolicy", env, tensorboard_log=str(tmp_path / "tb"), **TINY)
+    model = SAEIR_PPO("MSHGPolicy", env, tensorboard_log=str(tmp_path / "tb"), **TINY_KWARGS)
     model.learn(2 * 10 * env.num_envs, callback=callbacks, progress_bar=True)
     assert list((tmp_path / "ckpt").glob("saeir_*_steps.zip"))
     assert (tmp_path / "best" / "best_model.zip").exists()
@@ -190,7 +183,7 @@ def test_subset_of_scales_and_options(env):
         value_loss="mse",
         normalize_values=False,
         policy_kwargs=dict(hidden_size=8, scales=("team", "individual"), group_size=3, n_edge_types=2),
-        **{k: v for k, v in TINY.items() if k != "policy_kwargs"},
+        **{k: v for k, v in TINY_KWARGS.items() if k != "policy_kwargs"},
     ).learn(10 * env.num_envs)
     assert model.policy.scales == ("team", "individual")
     assert model.rollout_buffer.values.shape[-1] == 2

@@ -12,11 +12,11 @@ from sb3_saeir import SAEIR_PPO
 from sb3_saeir.enjoy import main as enjoy_main
 from sb3_saeir.train import main as train_main
 
-TINY = ["--task", "cn-sparse-n3", "--n-games", "2", "-params", "n_steps:10", "n_epochs:1", "--verbose", "0"]
+TINY_ARGV = ["--task", "cn-sparse-n3", "--n-games", "2", "-params", "n_steps:10", "n_epochs:1", "--verbose", "0"]
 
 
 def run_train(log_folder, *extra):
-    return train_main(["--algo", "saeir_ppo", *TINY, "-f", str(log_folder), *extra])
+    return train_main(["--algo", "saeir_ppo", *TINY_ARGV, "-f", str(log_folder), *extra])
 
 
 @pytest.fixture(scope="module")

@@ -53,3 +53,55 @@ class MixedSpacesEnv(DyingAgentsEnv):
         if self.which == "action" and agent == "agent_1":
             return spaces.Discrete(3)
         return super().action_space(agent)
+
+
+class ToyMeetEnv(ParallelEnv):
+    """A tiny deterministic cooperative game for fast positive tests: ``n_agents`` agents on a line of 5 cells must all
+    stand on the goal cell. Observation: own cell and goal cell (scaled to [0, 1]); actions: 0 stay, 1 left, 2 right;
+    reward 1 to every agent while all of them stand on the goal, 0 otherwise; 6 steps. The start cells and the goal come
+    from the reset seed, so a seeded reset replays the same game.
+    """
+
+    metadata = {"name": "toy_meet_v0"}  # noqa: RUF012
+
+    def __init__(self, n_agents=2, max_cycles=6):
+        self.possible_agents = [f"agent_{i}" for i in range(n_agents)]
+        self.agents = []
+        self.max_cycles = max_cycles
+        self._rng = np.random.default_rng()
+        self._cells = np.zeros(n_agents, dtype=int)
+        self._goal = 0
+        self._t = 0
+
+    def observation_space(self, agent):
+        return spaces.Box(0.0, 1.0, (2,), np.float32)
+
+    def action_space(self, agent):
+        return spaces.Discrete(3)
+
+    def _observations(self):
+        return {a: np.array([self._cells[i] / 4.0, self._goal / 4.0], np.float32) for i, a in enumerate(self.possible_agents)}
+
+    def reset(self, seed=None, options=None):
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        self.agents = list(self.possible_agents)
+        self._cells = self._rng.integers(0, 5, size=len(self.possible_agents))
+        self._goal = int(self._rng.integers(0, 5))
+        self._t = 0
+        return self._observations(), {a: {} for a in self.agents}
+
+    def step(self, actions):
+        moves = np.array([(0, -1, 1)[int(actions[a])] for a in self.possible_agents])
+        self._cells = np.clip(self._cells + moves, 0, 4)
+        self._t += 1
+        reward = float((self._cells == self._goal).all())
+        truncated = self._t >= self.max_cycles
+        self.agents = [] if truncated else list(self.possible_agents)
+        return (
+            self._observations(),
+            {a: reward for a in self.possible_agents},
+            {a: False for a in self.possible_agents},
+            {a: truncated for a in self.possible_agents},
+            {a: {} for a in self.possible_agents},
+        )

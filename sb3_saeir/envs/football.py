@@ -1,6 +1,6 @@
 """Google Research Football (gfootball 2.10.2) academy scenarios as a PettingZoo ``ParallelEnv``.
 
-The SAEIR authors' wrapper (``envs/football/Football_Env.py``, saeir-spec.md §5.1), rebuilt on PettingZoo:
+The SAEIR authors' wrapper (``envs/football/Football_Env.py``, ``docs/method.md``, "Football wrapper"), rebuilt on PettingZoo:
 
 - ``gfootball.env.create_environment(scenario, representation="simple115v2", rewards="scoring",
   number_of_left_players_agent_controls=N)``, the built-in AI as opponent, no rendering (no display needed).

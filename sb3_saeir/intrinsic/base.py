@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
@@ -75,3 +77,57 @@ class IntrinsicRewardCallback(BaseCallback, ABC):
 
     def _log_bonus(self, bonus: np.ndarray, buffer: GroupedRecurrentRolloutBuffer) -> None:
         self.logger.record(f"rollout/{self.name}_reward_mean", float(bonus.mean()))
+
+
+def true_next_observations(new_obs: np.ndarray, dones: np.ndarray, infos: Sequence[dict[str, Any]]) -> np.ndarray:
+    """The observation that followed each slot's action: ``new_obs``, except where the game ended, where SB3's
+    ``VecEnv`` has already put the reset observation into ``new_obs`` and the real one into
+    ``infos[i]["terminal_observation"]``.
+
+    :param new_obs: ``(n_envs, *obs_shape)`` as returned by ``env.step``
+    :param dones: ``(n_envs,)``
+    :param infos: one dict per slot
+    :return: a float32 copy, ``(n_envs, *obs_shape)``
+    """
+    next_obs = np.array(new_obs, dtype=np.float32, copy=True)
+    for slot in np.flatnonzero(dones):
+        terminal = infos[int(slot)].get("terminal_observation")
+        if terminal is not None:
+            next_obs[slot] = terminal
+    return next_obs
+
+
+class NextObservationRecorder(IntrinsicRewardCallback):
+    """Base class of intrinsic rewards computed from transitions: records the true next observation
+    :math:`o'_{t+1}` of every step of the rollout (:func:`true_next_observations`), which the rollout buffer does not
+    keep. :meth:`rollout_next_observations` returns them, checked against the buffer.
+
+    :param coef: scale of the bonus (beta)
+    :param name: prefix of the logged keys
+    :param verbose: verbosity
+    """
+
+    def __init__(self, coef: float = 0.1, name: str = "intrinsic", verbose: int = 0) -> None:
+        super().__init__(coef=coef, name=name, verbose=verbose)
+        self.next_observations: list[np.ndarray] = []  # o'_{t+1} of every step of the current rollout, (n_envs, d)
+
+    def _on_rollout_start(self) -> None:
+        self.next_observations = []
+
+    def _on_step(self) -> bool:
+        self.next_observations.append(
+            true_next_observations(self.locals["new_obs"], self.locals["dones"], self.locals["infos"])
+        )
+        return True
+
+    def rollout_next_observations(self, buffer: GroupedRecurrentRolloutBuffer) -> np.ndarray:
+        """The recorded next observations of the rollout in ``buffer``, ``(n_steps, n_envs, *obs_shape)``.
+
+        :raises RuntimeError: when the callback did not see every step (it was not passed to ``learn``)
+        """
+        if len(self.next_observations) != buffer.buffer_size:
+            raise RuntimeError(
+                f"{type(self).__name__} recorded {len(self.next_observations)} transitions, the buffer holds "
+                f"{buffer.buffer_size}: pass the callback to learn() so that it sees every step."
+            )
+        return np.stack(self.next_observations)  # (T, E, *obs_shape)

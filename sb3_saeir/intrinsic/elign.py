@@ -17,8 +17,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
-from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
-from sb3_saeir.intrinsic.rnd import true_next_observations
+from sb3_saeir.intrinsic.base import NextObservationRecorder
 
 PositionFn = Callable[[th.Tensor], th.Tensor]
 VisibilityFn = Callable[[th.Tensor, th.Tensor, float], th.Tensor]
@@ -200,7 +199,7 @@ class ForwardModel(nn.Module):
 
 
 # ---------------------------------------------------------------------------------------------------- the callback
-class ElignCallback(IntrinsicRewardCallback):
+class ElignCallback(NextObservationRecorder):
     r"""Elign's team expectation-alignment bonus (``elign_team``; Ma, Wang, Fei-Fei, Bernstein, Krishna,
     "ELIGN: Expectation Alignment as a Multi-Agent Intrinsic Reward", NeurIPS 2022, https://arxiv.org/abs/2210.04365)
     for parameter-shared on-policy training.
@@ -280,7 +279,6 @@ class ElignCallback(IntrinsicRewardCallback):
         self.action_space: spaces.Space | None = None
         self.forward_model: ForwardModel | None = None
         self.optimizer: th.optim.Optimizer | None = None
-        self.next_observations: list[np.ndarray] = []  # o'_{t+1} of every step of the current rollout, (n_envs, d)
         self._last_transitions: tuple[th.Tensor, th.Tensor, th.Tensor] | None = None
         self.last_neighbour_fraction = 0.0
 
@@ -296,6 +294,7 @@ class ElignCallback(IntrinsicRewardCallback):
         self.optimizer = th.optim.Adam(self.forward_model.parameters(), lr=self.learning_rate)
 
     def _init_callback(self) -> None:
+        super()._init_callback()
         if self.forward_model is None:
             self.setup_forward_model(self.model.observation_space, self.model.action_space)
 
@@ -349,22 +348,8 @@ class ElignCallback(IntrinsicRewardCallback):
         self._last_transitions = (obs, encoded, next_obs)
         return bonus.reshape(n_steps, n_envs).cpu().numpy()  # (T * G, N) -> (T, E)
 
-    def _on_rollout_start(self) -> None:
-        self.next_observations = []
-
-    def _on_step(self) -> bool:
-        self.next_observations.append(
-            true_next_observations(self.locals["new_obs"], self.locals["dones"], self.locals["infos"])
-        )
-        return True
-
     def compute_bonus(self, buffer: GroupedRecurrentRolloutBuffer) -> np.ndarray:
-        if len(self.next_observations) != buffer.buffer_size:
-            raise RuntimeError(
-                f"{type(self).__name__} recorded {len(self.next_observations)} transitions, the buffer holds "
-                f"{buffer.buffer_size}: pass the callback to learn() so that it sees every step."
-            )
-        next_observations = np.stack(self.next_observations)  # (T, E, *obs_shape)
+        next_observations = self.rollout_next_observations(buffer)  # (T, E, *obs_shape)
         return self.bonus_from_transitions(buffer.observations, buffer.actions, next_observations, buffer.n_agents)
 
     # ------------------------------------------------------------------------------------------------ training

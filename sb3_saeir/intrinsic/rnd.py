@@ -7,7 +7,6 @@ Reference: ``baselines-and-peers.md`` §4 (the official code, openai/random-netw
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 import torch as th
@@ -16,27 +15,9 @@ from stable_baselines3.common.utils import get_device
 from torch import nn
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
-from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
+from sb3_saeir.intrinsic.base import NextObservationRecorder, true_next_observations
 
 _INPUTS = ("agent", "joint")
-
-
-def true_next_observations(new_obs: np.ndarray, dones: np.ndarray, infos: Sequence[dict[str, Any]]) -> np.ndarray:
-    """The observation that followed each slot's action: ``new_obs``, except where the game ended, where SB3's
-    ``VecEnv`` has already put the reset observation into ``new_obs`` and the real one into
-    ``infos[i]["terminal_observation"]``.
-
-    :param new_obs: ``(n_envs, *obs_shape)`` as returned by ``env.step``
-    :param dones: ``(n_envs,)``
-    :param infos: one dict per slot
-    :return: a float32 copy, ``(n_envs, *obs_shape)``
-    """
-    next_obs = np.array(new_obs, dtype=np.float32, copy=True)
-    for slot in np.flatnonzero(dones):
-        terminal = infos[int(slot)].get("terminal_observation")
-        if terminal is not None:
-            next_obs[slot] = terminal
-    return next_obs
 
 
 def _mlp(input_dim: int, net_arch: Sequence[int], output_dim: int) -> nn.Sequential:
@@ -54,7 +35,7 @@ def _mlp(input_dim: int, net_arch: Sequence[int], output_dim: int) -> nn.Sequent
     return nn.Sequential(*layers)
 
 
-class RNDCallback(IntrinsicRewardCallback):
+class RNDCallback(NextObservationRecorder):
     r"""Random network distillation bonus for cooperative multi-agent PPO (Burda et al., 2019,
     https://arxiv.org/abs/1810.12894).
 
@@ -76,7 +57,7 @@ class RNDCallback(IntrinsicRewardCallback):
         R_t = \gamma_{int} R_{t-1} + b_t \ (\text{per slot, carried across rollouts and episodes}), \qquad
         r^{int}_t = b_t / \sqrt{\operatorname{Var}[R] + 10^{-8}} .
 
-    **Input** (the SAEIR paper only says "RND extended to MARL", see ``saeir-spec.md`` §6):
+    **Input** (the SAEIR paper only says "RND extended to MARL", see ``docs/method.md``, "Baselines and ablations"):
 
     - ``input="agent"`` (default): each agent's own next observation, i.e. individual novelty, one shared
       target/predictor pair for all agents. It matches the parameter sharing of the policy, keeps the input size
@@ -161,7 +142,6 @@ class RNDCallback(IntrinsicRewardCallback):
         self.obs_rms: RunningMeanStd | None = None
         self.return_rms = RunningMeanStd(shape=())
         self.intrinsic_returns: np.ndarray | None = None  # RewardForwardFilter state, one per slot
-        self.next_observations: list[np.ndarray] = []  # o'_{t+1} of every step of the current rollout, (n_envs, d)
         self._last_inputs: np.ndarray | None = None
         self._last_raw_mean = 0.0
         self._stats_include_last_inputs = False
@@ -253,15 +233,6 @@ class RNDCallback(IntrinsicRewardCallback):
         return raw / np.sqrt(self.return_rms.var + 1e-8)
 
     # ------------------------------------------------------------------------------------------------ callback
-    def _on_rollout_start(self) -> None:
-        self.next_observations = []
-
-    def _on_step(self) -> bool:
-        self.next_observations.append(
-            true_next_observations(self.locals["new_obs"], self.locals["dones"], self.locals["infos"])
-        )
-        return True
-
     def rollout_inputs(self, next_observations: np.ndarray, n_agents: int) -> np.ndarray:
         """The RND inputs of a rollout.
 
@@ -295,12 +266,7 @@ class RNDCallback(IntrinsicRewardCallback):
         return self.normalize_bonus(raw)
 
     def compute_bonus(self, buffer: GroupedRecurrentRolloutBuffer) -> np.ndarray:
-        if len(self.next_observations) != buffer.buffer_size:
-            raise RuntimeError(
-                f"{type(self).__name__} recorded {len(self.next_observations)} transitions, the buffer holds "
-                f"{buffer.buffer_size}: pass the callback to learn() so that it sees every step."
-            )
-        next_observations = np.stack(self.next_observations)  # (T, E, *obs_shape)
+        next_observations = self.rollout_next_observations(buffer)  # (T, E, *obs_shape)
         return self.bonus_from_next_observations(next_observations, buffer.n_agents)  # (T, E)
 
     def train_bonus_model(self, buffer: GroupedRecurrentRolloutBuffer) -> None:
@@ -315,3 +281,6 @@ class RNDCallback(IntrinsicRewardCallback):
     def _log_bonus(self, bonus: np.ndarray, buffer: GroupedRecurrentRolloutBuffer) -> None:
         super()._log_bonus(bonus, buffer)
         self.logger.record("rollout/rnd_raw_reward_mean", self._last_raw_mean)
+
+
+__all__ = ["RNDCallback", "true_next_observations"]

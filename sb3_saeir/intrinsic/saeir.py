@@ -1,6 +1,6 @@
 """Sequentially accumulated entropy intrinsic reward (SAEIR, IJCAI-24), as a pure NumPy function.
 
-Reference: ``saeir-spec.md`` §2 (the released code) and the paper's Eqs. 11-15.
+Reference: ``docs/method.md``, "The intrinsic reward" (the released code) and the paper's Eqs. 11-15.
 """
 
 import numpy as np
@@ -25,8 +25,8 @@ def saeir_bonus(
     is given. Everything is computed independently for every trailing index (env, agent, scale, ...).
     The result is **not** multiplied by the intrinsic coefficient :math:`\beta` (0.1 in the released code).
 
-    **variant="code"** (spec §2.2, the released code). With :math:`p^{(n)}_j = e^{v_j} / \sum_{l<n} e^{v_l}`
-    the softmax over the first :math:`n` window entries and
+    **variant="code"** (the released code; ``docs/method.md``, "The intrinsic reward"). With
+    :math:`p^{(n)}_j = e^{v_j} / \sum_{l<n} e^{v_l}` the softmax over the first :math:`n` window entries and
 
     .. math::
 
@@ -37,8 +37,8 @@ def saeir_bonus(
     i.e. step :math:`t` is rewarded with the entropy of the value-softmax over the *preceding* window steps
     whenever appending :math:`v_t` lowers that entropy. The bootstrap value is never used. It is evaluated in
     :math:`O(T)` with a running log-sum-exp :math:`L_{n+1} = \operatorname{logaddexp}(L_n, v_n)` and the
-    grouping identity (spec §2.3), which is algebraically equal to :math:`H_n = \log S_n - A_n / S_n` of
-    spec §2.6 but has no cancellation and no overflow:
+    grouping identity, which is algebraically equal to :math:`H_n = \log S_n - A_n / S_n` of
+    the released code but has no cancellation and no overflow:
 
     .. math::
 
@@ -46,11 +46,11 @@ def saeir_bonus(
         H_{n+1} = -q_n \log q_n - (1 - q_n) \log (1 - q_n) + (1 - q_n) H_n .
 
     Steps 0 and 1 of a window never fire (:math:`H_0 = H_1 = 0`). The code's :math:`10^{-8}` clamps are
-    not reproduced; they change the result by less than :math:`10^{-7}` in normal ranges (spec §2.6).
-    Worked example (spec §2.6): values ``[0, 0, 2, 0.5, 3]`` give ``[0, 0, log 2, 0, 0]`` (only ``t=2`` fires,
+    not reproduced; they change the result by less than :math:`10^{-7}` in normal ranges.
+    Worked example: values ``[0, 0, 2, 0.5, 3]`` give ``[0, 0, log 2, 0, 0]`` (only ``t=2`` fires,
     :math:`H_2 = \log 2 \approx 0.693 > H_3 \approx 0.666`).
 
-    **variant="paper"** (Eqs. 12-14 read literally, spec §2.5). The per-state term of step :math:`t` with a
+    **variant="paper"** (Eqs. 12-14 read literally). The per-state term of step :math:`t` with a
     window of the first :math:`n` steps is
 
     .. math::
@@ -69,7 +69,7 @@ def saeir_bonus(
 
     :param values: Stored critic outputs of one scale, time first: shape ``(T, ...)``,
         e.g. ``(T, n_envs, n_agents)`` or ``(T, n_envs, n_agents, n_scales)``.
-    :param variant: ``"code"`` (released code, spec §2.2/§2.6) or ``"paper"`` (Eqs. 12-14, literal).
+    :param variant: ``"code"`` (released code) or ``"paper"`` (Eqs. 12-14, literal).
     :param episode_starts: Optional, 1 where a new episode starts at step ``t``; shape ``(T, ...)`` whose
         axes are aligned from the **left** with ``values`` (missing trailing axes are broadcast, so
         ``(T, n_envs)`` works for ``values`` of shape ``(T, n_envs, n_agents)``). When given, the entropy
@@ -188,12 +188,13 @@ def value_softmax_entropy(values: np.ndarray) -> np.ndarray:
 
 
 class SAEIRCallback(IntrinsicRewardCallback):
-    """SAEIR as a callback: the bonus of every critic scale from that scale's stored values (spec §2).
+    """SAEIR as a callback: the bonus of every critic scale from that scale's stored values (``docs/method.md``,
+    "The intrinsic reward").
 
     For each scale K, game and agent, ``saeir_bonus`` runs over the rollout window of the stored (normalised,
-    detached) critic outputs; ``coef * bonus`` enters only that scale's TD errors (spec §2.4). Added automatically by
-    ``SAEIR_PPO(intrinsic_reward="saeir")``; with ``intrinsic_reward=None`` it can be passed to ``learn`` explicitly
-    (the SAE-only ablation uses it on a single MAPPO critic).
+    detached) critic outputs; ``coef * bonus`` enters only that scale's TD errors (``docs/method.md``, "GAE per
+    scale"). Added automatically by ``SAEIR_PPO(intrinsic_reward="saeir")``; with ``intrinsic_reward=None`` it can be
+    passed to ``learn`` explicitly (the SAE-only ablation uses it on a single MAPPO critic).
 
     Logs ``rollout/intrinsic_reward_mean`` (unscaled, all scales), and per scale
     ``rollout/intrinsic_reward_mean_<scale>``, ``rollout/intrinsic_fire_rate_<scale>`` (fraction of steps where

@@ -1,0 +1,94 @@
+"""Save and load across methods and policies (SB3's tests/test_save_load.py for the package's algorithms)."""
+
+import numpy as np
+import pytest
+import torch as th
+
+from sb3_saeir import MAPPO, SAEIR_PPO
+
+ALGOS = [SAEIR_PPO, MAPPO]
+POLICIES = ["MSHGPolicy", "MAPPOPolicy", "SNMAPPOPolicy"]
+
+
+def deterministic_actions(model, observations):
+    """Greedy actions over a sequence of observations ``(T, n_slots, d)``, GRU states carried through."""
+    states, starts, actions = None, np.ones(observations.shape[1], dtype=bool), []
+    for obs in observations:
+        action, states = model.predict(obs, state=states, episode_start=starts, deterministic=True)
+        starts = np.zeros_like(starts)
+        actions.append(action)
+    return np.stack(actions)
+
+
+def observation_sequence(env, n_steps=8):
+    rng = np.random.default_rng(0)
+    observations = [env.reset()]
+    for _ in range(n_steps - 1):
+        observations.append(env.step(rng.integers(0, env.action_space.n, size=env.num_envs))[0])
+    return np.stack(observations)
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+@pytest.mark.parametrize("policy", POLICIES)
+def test_save_load_same_parameters_actions_and_settings(algo, policy, env, tiny_kwargs, tmp_path):
+    model = algo(policy, env, seed=0, intrinsic_coef=0.3, **tiny_kwargs).learn(2 * 10 * env.num_envs)
+    observations = observation_sequence(env)
+    expected_actions = deterministic_actions(model, observations)
+    model.save(tmp_path / "model.zip")
+
+    loaded = algo.load(tmp_path / "model.zip", device="cpu")
+    assert type(loaded) is algo and type(loaded.policy) is type(model.policy)
+    for name, tensor in model.policy.state_dict().items():
+        assert th.equal(tensor, loaded.policy.state_dict()[name]), name
+    np.testing.assert_array_equal(deterministic_actions(loaded, observations), expected_actions)
+    for attribute in (
+        "n_agents",
+        "n_steps",
+        "n_epochs",
+        "n_minibatches",
+        "intrinsic_reward",
+        "intrinsic_coef",
+        "num_timesteps",
+    ):
+        assert getattr(loaded, attribute) == getattr(model, attribute), attribute
+    assert loaded.policy.scales == model.policy.scales
+    # the ValueNorm statistics are part of the state dict: the de-normalised values agree
+    values = np.random.default_rng(1).normal(size=(4, len(model.policy.scales))).astype(np.float32)
+    np.testing.assert_array_equal(
+        loaded.policy.denormalize_values_numpy(values), model.policy.denormalize_values_numpy(values)
+    )
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_loaded_model_continues_training_on_a_new_env(algo, env, tiny_kwargs, tmp_path):
+    model = algo("MSHGPolicy", env, seed=0, **tiny_kwargs).learn(10 * env.num_envs)
+    model.save(tmp_path / "model.zip")
+    loaded = algo.load(tmp_path / "model.zip", env=env, device="cpu")
+
+    def adam_steps(m):
+        return sorted(float(state["step"]) for state in m.policy.optimizer.state_dict()["state"].values())
+
+    assert adam_steps(loaded) == adam_steps(model) and adam_steps(model)[0] > 0  # the optimizer state was restored
+    loaded.learn(10 * env.num_envs, reset_num_timesteps=False)
+    assert loaded.num_timesteps == 2 * 10 * env.num_envs
+
+
+def test_loading_onto_an_env_with_another_number_of_agents_is_refused(env, tiny_kwargs, tmp_path):
+    from sb3_saeir import make_multiagent_vec_env
+
+    SAEIR_PPO("MSHGPolicy", env, seed=0, **tiny_kwargs).save(tmp_path / "model.zip")
+    four_agents = make_multiagent_vec_env("cn-sparse-n4", n_games=2, seed=0)
+    with pytest.raises(ValueError, match=r"agents|Observation spaces do not match"):
+        SAEIR_PPO.load(tmp_path / "model.zip", env=four_agents, device="cpu")
+    four_agents.close()
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_save_load_on_a_user_parallel_env(algo, toy_env, tiny_kwargs, tmp_path):
+    """Any PettingZoo parallel env through SuperSuit: train, save, load, same greedy actions."""
+    model = algo("MSHGPolicy", toy_env, seed=0, n_steps=6, n_epochs=1, policy_kwargs=dict(hidden_size=8))
+    model.learn(2 * 6 * toy_env.num_envs)
+    observations = observation_sequence(toy_env, n_steps=6)
+    model.save(tmp_path / "toy.zip")
+    loaded = algo.load(tmp_path / "toy.zip", device="cpu")
+    np.testing.assert_array_equal(deterministic_actions(loaded, observations), deterministic_actions(model, observations))

@@ -97,14 +97,34 @@ from sb3_saeir.common.vec_env import (
     make_multiagent_vec_env,
 )
 from sb3_saeir.envs import list_tasks, make_task
+from sb3_saeir.evaluation import summarise_episodes
 
 ENTRY_POINT = "sb3_saeir.zoo:SAEIRGameEnv"
 WRAPPER_NAME = "sb3_saeir.zoo.games_to_agents"
 GAMES_MONITOR = "games"  # -> games.monitor.csv
 
-# Set by the launcher's enjoy: every GameMonitor built in this process is kept here for the final summary.
-_enjoy_monitors: list[GameMonitor] | None = None
-_warned_subproc = False
+
+
+class EnjoySession:
+    """The launcher's replay: collects the :class:`GameMonitor` of every env :func:`games_to_agents` builds while it
+    is active, for the per-game summary at the end.
+
+    rl-zoo3 calls the ``vec_env_wrapper`` by its dotted name with YAML keyword arguments only, so the launcher cannot
+    hand the session to :func:`games_to_agents` as an argument; the active session is the module's one piece of state,
+    set and cleared by the ``with`` block of :func:`_run_enjoy`.
+    """
+
+    active: EnjoySession | None = None
+
+    def __init__(self) -> None:
+        self.monitors: list[GameMonitor] = []
+
+    def __enter__(self) -> EnjoySession:
+        EnjoySession.active = self
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        EnjoySession.active = None
 
 
 # ------------------------------------------------------------------------------------------------ gymnasium ids
@@ -243,7 +263,6 @@ def _unwrap(venv: VecEnv) -> VecEnv:
 
 def _monitor_files(venv: VecEnv) -> list[str]:
     """Paths of the ``Monitor`` CSVs of rl-zoo3's game envs (``DummyVecEnv`` only; ``[]`` when not logged)."""
-    global _warned_subproc
     base = _unwrap(venv)
     if isinstance(base, DummyVecEnv):
         files = []
@@ -255,8 +274,7 @@ def _monitor_files(venv: VecEnv) -> list[str]:
             if writer is not None:
                 files.append(os.path.abspath(writer.file_handler.name))
         return files
-    if isinstance(base, SubprocVecEnv) and not _warned_subproc:
-        _warned_subproc = True
+    if isinstance(base, SubprocVecEnv):  # Python shows this warning once per process (the default warnings filter)
         warnings.warn(
             "games_to_agents: rl-zoo3 built the game envs in subprocesses (train --vec-env subproc, or plain "
             "rl_zoo3.enjoy with --n-envs > 1), where the location of its monitor files cannot be read: if it logs "
@@ -320,8 +338,8 @@ def games_to_agents(venv: VecEnv, num_cpus: int = 0, mark_truncation: bool = Fal
     )
     filename = os.path.join(os.path.dirname(monitor_files[0]), GAMES_MONITOR) if monitor_files else None
     monitor = GameMonitor(agents, filename=filename, env_id=gym_id(task))
-    if _enjoy_monitors is not None:
-        _enjoy_monitors.append(monitor)
+    if EnjoySession.active is not None:
+        EnjoySession.active.monitors.append(monitor)
     return monitor
 
 
@@ -413,13 +431,25 @@ def prepare_train_args(argv: Sequence[str]) -> list[str]:
     return new_argv
 
 
-def prepare_enjoy_args(argv: Sequence[str]) -> list[str]:
-    """rl-zoo3 ``enjoy`` arguments for a package task: at least 2 games (``rl_zoo3.enjoy`` crashes with ``--n-envs 1``
-    on a multi-agent env). Arguments for other envs are returned unchanged."""
-    parser = _mini_parser([(["--env"], {"default": "CartPole-v1"}), (["--n-envs"], {"type": int, "default": None})])
+def parse_enjoy_args(argv: Sequence[str]) -> tuple[list[str], argparse.Namespace]:
+    """rl-zoo3 ``enjoy`` arguments for a package task (:func:`prepare_enjoy_args`) and the options the launcher reads
+    itself (``env``, ``verbose``), from one parse.
+
+    :param argv: the arguments after ``enjoy``
+    :return: the arguments for ``rl_zoo3.enjoy.enjoy()`` and the launcher's options
+    """
+    parser = _mini_parser(
+        [
+            (["--env"], {"default": "CartPole-v1"}),
+            (["--n-envs"], {"type": int, "default": None}),
+            (["--verbose"], {"type": int, "default": 1}),
+        ]
+    )
     args, rest = parser.parse_known_args(list(argv))
     if not is_package_env(args.env):
-        return list(argv)
+        return list(argv), args
+    if "--verbose" in argv or any(item.startswith("--verbose=") for item in argv):
+        rest += ["--verbose", str(args.verbose)]
     n_envs = args.n_envs if args.n_envs is not None else 2
     if n_envs < 2:
         print(
@@ -427,25 +457,31 @@ def prepare_enjoy_args(argv: Sequence[str]) -> list[str]:
             "when --n-envs is 1; a game has one slot per agent)."
         )
         n_envs = 2
-    return [*rest, "--env", args.env, "--n-envs", str(n_envs)]
+    return [*rest, "--env", args.env, "--n-envs", str(n_envs)], args
+
+
+def prepare_enjoy_args(argv: Sequence[str]) -> list[str]:
+    """rl-zoo3 ``enjoy`` arguments for a package task: at least 2 games (``rl_zoo3.enjoy`` crashes with ``--n-envs 1``
+    on a multi-agent env). Arguments for other envs are returned unchanged."""
+    return parse_enjoy_args(argv)[0]
 
 
 def _print_enjoy_summary(monitors: Sequence[GameMonitor]) -> None:
-    episodes = [episode for monitor in monitors for episode in monitor.episodes]
+    episodes = [
+        {key: float(value) for key, value in episode.items() if key != "t" and value is not None}
+        for monitor in monitors
+        for episode in monitor.episodes
+    ]
     n_games = sum(monitor.num_envs // monitor.get_attr("n_agents")[0] for monitor in monitors)
     if not episodes:
         print(f"sb3_saeir.zoo: no game finished (each of the {n_games} games needs a full episode; raise -n).")
         return
-    returns = np.array([episode["r"] for episode in episodes])
-    lengths = np.array([episode["l"] for episode in episodes])
+    summary = summarise_episodes(episodes)
     print(f"sb3_saeir.zoo: {len(episodes)} finished games ({n_games} in parallel)")
-    print(f"Mean team return: {returns.mean():.2f} +/- {returns.std():.2f}")
-    print(f"Mean episode length (game steps): {lengths.mean():.2f} +/- {lengths.std():.2f}")
-    metric_names = [key for key in episodes[0] if key not in ("r", "l", "t")]
-    for name in metric_names:
-        values = np.array([float(episode[name]) for episode in episodes if episode.get(name) is not None])
-        if len(values):
-            print(f"Mean {name}: {values.mean():.3f}")
+    print(f"Mean team return: {summary['ep_rew_mean']:.2f} +/- {summary['ep_rew_std']:.2f}")
+    print(f"Mean episode length (game steps): {summary['ep_len_mean']:.2f} +/- {summary['ep_len_std']:.2f}")
+    for name in sorted({key for episode in episodes for key in episode} - {"r", "l"}):
+        print(f"Mean {name}: {summary[f'{name}_mean']:.3f}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -487,26 +523,22 @@ def _run_train(argv: Sequence[str]) -> int:
 
 
 def _run_enjoy(argv: Sequence[str]) -> int:
-    global _enjoy_monitors
     from rl_zoo3.enjoy import enjoy
     from rl_zoo3.exp_manager import ExperimentManager
 
-    new_argv = prepare_enjoy_args(argv)
-    options = _mini_parser(
-        [(["--env"], {"default": "CartPole-v1"}), (["--verbose"], {"type": int, "default": 1})]
-    ).parse_known_args(new_argv)[0]
+    new_argv, options = parse_enjoy_args(argv)
+    # rl_zoo3.enjoy builds its envs with this class attribute (no option for it): the game envs are only constructed,
+    # so build them in this process, not in SubprocVecEnv workers; restored afterwards
     saved_vec_env_cls = ExperimentManager.default_vec_env_cls
     if is_package_env(options.env):
-        # the game envs are only constructed: build them in this process, not in SubprocVecEnv workers
         ExperimentManager.default_vec_env_cls = DummyVecEnv
     sys.argv = ["python -m sb3_saeir.zoo enjoy", *new_argv]
-    _enjoy_monitors = []
     try:
-        enjoy()
-        if options.verbose > 0 and _enjoy_monitors:
-            _print_enjoy_summary(_enjoy_monitors)
+        with EnjoySession() as session:
+            enjoy()
+        if options.verbose > 0 and session.monitors:
+            _print_enjoy_summary(session.monitors)
     finally:
-        _enjoy_monitors = None
         ExperimentManager.default_vec_env_cls = saved_vec_env_cls
     return 0
 

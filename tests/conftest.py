@@ -24,7 +24,7 @@ def tiny_kwargs():
 
 @pytest.fixture
 def toy_env():
-    """:class:`toy_envs.ToyMeetEnv` (2 agents, 6 steps) with 3 games through SuperSuit, seeded."""
+    """:class:`toy_envs.ToyMeetEnv` (3 agents, 6 steps) with 3 games through SuperSuit, seeded."""
     from tests.toy_envs import ToyMeetEnv
 
     vec_env = make_multiagent_vec_env(ToyMeetEnv, n_games=3, seed=0)

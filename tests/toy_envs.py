@@ -64,7 +64,7 @@ class ToyMeetEnv(ParallelEnv):
 
     metadata = {"name": "toy_meet_v0"}  # noqa: RUF012
 
-    def __init__(self, n_agents=2, max_cycles=6):
+    def __init__(self, n_agents=3, max_cycles=6):
         self.possible_agents = [f"agent_{i}" for i in range(n_agents)]
         self.agents = []
         self.max_cycles = max_cycles

@@ -115,6 +115,8 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
 
     def reset(self) -> None:
         super().reset()
+        # observations of any numeric dtype are kept as float32, what the networks take (SB3 casts in the policy)
+        self.observations = np.zeros((self.buffer_size, self.n_envs, *self.obs_shape), dtype=np.float32)
         shape_k = (self.buffer_size, self.n_envs, self.n_scales)
         self.rewards = np.zeros(shape_k, dtype=np.float32)
         self.values = np.zeros(shape_k, dtype=np.float32)

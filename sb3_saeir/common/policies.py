@@ -448,11 +448,20 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
         **kwargs: Any,
     ) -> None:
         unknown = [scale for scale in scales if scale not in SCALES]
-        if not scales or unknown:
-            raise ValueError(f"scales must be a non-empty subset of {SCALES}, got {tuple(scales)}.")
+        if isinstance(scales, str) or not scales or unknown or len(set(scales)) != len(scales):
+            raise ValueError(
+                f"MSHGPolicy: scales must be a non-empty subset of {SCALES}, each at most once, got {scales!r}."
+            )
         self.critic_scales = tuple(scale for scale in SCALES if scale in scales)
         if group_size < 1 or n_edge_types < 1:
-            raise ValueError(f"group_size and n_edge_types must be >= 1, got {group_size} and {n_edge_types}.")
+            raise ValueError(f"MSHGPolicy: group_size and n_edge_types must be >= 1, got {group_size} and {n_edge_types}.")
+        n_agents = int(kwargs.get("n_agents", 1))
+        if "group" in self.critic_scales and n_agents > 1 and group_size >= n_agents:
+            raise ValueError(
+                f"MSHGPolicy: group_size={group_size} must be smaller than the number of agents ({n_agents}): with k = N "
+                "every group hyperedge holds the whole team and the group critic copies the team critic. Use a smaller "
+                "group_size, or leave the group scale out (scales=('team', 'individual'))."
+            )
         self.group_size = group_size
         self.n_edge_types = n_edge_types
         self.gumbel_tau = gumbel_tau

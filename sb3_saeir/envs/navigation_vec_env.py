@@ -139,6 +139,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
         self.possible_agents: list[str] = [f"agent_{i}" for i in range(self.n_agents)]
         self.num_cpus = 0
         self.mark_truncation = mark_truncation
+        self.check_finite = False  # the engine's values are finite by construction
         self._probe_render_mode = render_mode
         self.state_space = gym.spaces.Box(-np.inf, np.inf, (self.n_agents * self.core.obs_dim,), dtype=np.float32)
         self.games = [NavigationGame(self, g) for g in range(self.n_games)]

@@ -6,6 +6,7 @@ chunked recurrent PPO update); :class:`~sb3_saeir.SAEIR_PPO` is MAPPO with SAEIR
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -96,6 +97,74 @@ def clipped_value_loss(
         values_clipped = old_values + th.clamp(values - old_values, -clip_range_vf, clip_range_vf)
         losses = th.max(losses, point_loss(returns - values_clipped))
     return losses
+
+
+# Valid range of each numeric argument: (test, description). Schedules (callables) are not checked.
+_RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
+    "learning_rate": (lambda x: x > 0, "> 0"),
+    "n_steps": (lambda x: x >= 1, ">= 1"),
+    "n_epochs": (lambda x: x >= 1, ">= 1"),
+    "gamma": (lambda x: 0 <= x <= 1, "in [0, 1]"),
+    "gae_lambda": (lambda x: 0 <= x <= 1, "in [0, 1]"),
+    "clip_range": (lambda x: x > 0, "> 0"),
+    "ent_coef": (lambda x: x >= 0, ">= 0"),
+    "vf_coef": (lambda x: x >= 0, ">= 0"),
+    "max_grad_norm": (lambda x: x > 0, "> 0"),
+    "n_minibatches": (lambda x: x >= 1, ">= 1"),
+    "data_chunk_length": (lambda x: x >= 1, ">= 1"),
+    "intrinsic_coef": (lambda x: x >= 0, ">= 0 (or None for the bonus's default)"),
+    "huber_delta": (lambda x: x > 0, "> 0"),
+    "target_kl": (lambda x: x > 0, "> 0 (or None)"),
+}
+_INTEGER_ARGUMENTS = ("n_steps", "n_epochs", "n_minibatches", "data_chunk_length")
+
+
+def check_ranges(algo_name: str, **values: Any) -> None:
+    """Raise a ``ValueError`` naming the first argument outside its valid range (``None`` and schedules pass).
+
+    :param algo_name: class name for the message
+    :param values: argument name -> value, for names in ``_RANGES``
+    """
+    for name, value in values.items():
+        if value is None or callable(value):
+            continue
+        if name in _INTEGER_ARGUMENTS and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
+            raise ValueError(f"{algo_name}: {name} must be an integer, got {value!r}.")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
+            raise ValueError(f"{algo_name}: {name} must be a finite number, got {value!r}.")
+        test, rule = _RANGES[name]
+        if not test(float(value)):
+            raise ValueError(f"{algo_name}: {name}={value!r} is out of range; it must be {rule}.")
+
+
+def check_env_argument(algo_name: str, env: Any) -> None:
+    """Reject an env that is not a (multi-agent) vec env with a message naming ``make_multiagent_vec_env``.
+
+    :param algo_name: class name for the message
+    :param env: the ``env`` argument
+    """
+    if env is None or isinstance(env, VecEnv):
+        return
+    example = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
+    if isinstance(env, str):
+        from sb3_saeir.envs import list_tasks
+
+        what = f"the task id {env!r}" if env in list_tasks() else f"the string {env!r}"
+        raise ValueError(
+            f"{algo_name} needs a multi-agent vec env, got {what}; build it with "
+            f"sb3_saeir.make_multiagent_vec_env({env!r}, n_games=...) (e.g. {example}). Tasks: sb3_saeir.list_tasks()."
+        )
+    module = type(env).__module__
+    if module.startswith("pettingzoo") or hasattr(env, "possible_agents"):
+        raise ValueError(
+            f"{algo_name} needs a multi-agent vec env, got the PettingZoo env {type(env).__name__}; wrap copies of it "
+            "with sb3_saeir.make_multiagent_vec_env(<a function returning one ParallelEnv>, n_games=...) "
+            "(an AEC env first goes through pettingzoo.utils.aec_to_parallel)."
+        )
+    raise ValueError(
+        f"{algo_name} needs a multi-agent vec env (one slot per agent of each game), got {type(env).__name__}; "
+        f"build one with sb3_saeir.make_multiagent_vec_env (e.g. {example})."
+    )
 
 
 class MAPPO(OnPolicyAlgorithm):
@@ -205,6 +274,24 @@ class MAPPO(OnPolicyAlgorithm):
         device: th.device | str = "cpu",
         _init_setup_model: bool = True,
     ) -> None:
+        check_env_argument(type(self).__name__, env)
+        check_ranges(
+            type(self).__name__,
+            learning_rate=learning_rate,
+            n_steps=n_steps,
+            n_epochs=n_epochs,
+            gamma=gamma,
+            gae_lambda=gae_lambda,
+            clip_range=clip_range,
+            ent_coef=ent_coef,
+            vf_coef=vf_coef,
+            max_grad_norm=max_grad_norm,
+            n_minibatches=n_minibatches,
+            data_chunk_length=data_chunk_length,
+            intrinsic_coef=intrinsic_coef,
+            huber_delta=huber_delta,
+            target_kl=target_kl,
+        )
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]
@@ -232,8 +319,6 @@ class MAPPO(OnPolicyAlgorithm):
             raise ValueError(f"Unknown intrinsic_reward {intrinsic_reward!r}; choose one of {[*INTRINSIC_REWARDS, None]}.")
         if value_loss not in ("huber", "mse"):
             raise ValueError(f"value_loss must be 'huber' or 'mse', got {value_loss!r}.")
-        if data_chunk_length < 1:
-            raise ValueError(f"data_chunk_length must be >= 1, got {data_chunk_length}.")
         self.batch_size = batch_size
         self.n_epochs = n_epochs
         self.clip_range = clip_range

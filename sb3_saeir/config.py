@@ -74,6 +74,10 @@ def _constructor_parameters(algo: str) -> dict[str, inspect.Parameter]:
     return dict(inspect.signature(ALGOS[algo]).parameters)
 
 
+# Keys whose value is a dict, or a string evaluated to one (rl-zoo's ``policy_kwargs`` convention).
+_DICT_KEYS = ("policy_kwargs", "env_kwargs", "intrinsic_kwargs")
+
+
 def _type_ok(value: Any, reference: Any) -> bool:
     if reference is None or value is None:
         return True
@@ -124,6 +128,10 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
             raise ConfigError(f"unknown config key {key!r} for {algo}; valid keys: {', '.join(keys)}.")
     annotations = _annotations(algo)
     for key, value in overrides.items():
+        if key in _DICT_KEYS:
+            if value is not None and not isinstance(value, (dict, str)):
+                raise ConfigError(f"{key} must be a dict or a string like \"dict(key=value)\", got {value!r}.")
+            continue
         reference = hyperparams.get(key)
         if reference is not None and not _type_ok(value, reference):
             expected = f"{type(reference).__name__} (like the configured {reference!r})"
@@ -134,6 +142,14 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
         raise ConfigError(f"hyperparameter {key}={value!r} has type {type(value).__name__}, expected {expected}.")
     if "n_envs" in overrides and (not isinstance(overrides["n_envs"], int) or overrides["n_envs"] < 1):
         raise ConfigError(f"n_envs (number of games) must be a positive integer, got {overrides['n_envs']!r}.")
+    n_timesteps = overrides.get("n_timesteps", hyperparams.get("n_timesteps"))
+    if n_timesteps is not None and (
+        isinstance(n_timesteps, bool) or not isinstance(n_timesteps, (int, float)) or n_timesteps < 1
+    ):
+        raise ConfigError(f"n_timesteps (-n, agent-steps) must be a positive number, got {n_timesteps!r}.")
+    num_cpus = overrides.get("num_cpus", hyperparams.get("num_cpus", 0))
+    if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 0:
+        raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
 
 
 def config_dir() -> Path:
@@ -155,7 +171,14 @@ def load_hyperparams(algo: str, task: str, conf_file: str | os.PathLike | None =
     """
     path = Path(conf_file) if conf_file is not None else config_path(algo)
     with open(path) as file:
-        entries = yaml.safe_load(file) or {}
+        try:
+            entries = yaml.safe_load(file) or {}
+        except yaml.YAMLError as error:
+            where = getattr(error, "problem_mark", None)
+            line = f" (line {where.line + 1})" if where is not None else ""
+            raise ConfigError(f"{path} is not valid YAML{line}: {getattr(error, 'problem', error)}.") from error
+    if not isinstance(entries, dict) or not all(isinstance(entry, dict) for entry in entries.values()):
+        raise ConfigError(f"{path} must map task ids to dicts of hyperparameters (rl-zoo's layout).")
     if task not in entries:
         raise KeyError(f"{path} has no entry for task {task!r}. Entries: {', '.join(sorted(entries))}.")
     return dict(entries[task])

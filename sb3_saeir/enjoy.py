@@ -76,6 +76,18 @@ def record_gif(
     return len(frames)
 
 
+def model_env_mismatch(model: Any, env: Any) -> str:
+    """Why ``model`` cannot play ``env`` (different observation or action space, or number of agents), or ``""``."""
+    model_agents, env_agents = getattr(model, "n_agents", None), getattr(env, "n_agents", None)
+    if model_agents is not None and env_agents is not None and model_agents != env_agents:
+        return f"the model was trained with {model_agents} agents per game, the task has {env_agents}."
+    if model.observation_space != env.observation_space:
+        return f"observation space {model.observation_space} (model) vs {env.observation_space} (task)."
+    if model.action_space != env.action_space:
+        return f"action space {model.action_space} (model) vs {env.action_space} (task)."
+    return ""
+
+
 def run_env_kwargs(model_path: Path, task: str) -> dict[str, Any]:
     """The ``env_kwargs`` of the run a model was saved in (``<run>/<task>/config.yml``), or ``{}``."""
     config = model_path.parent / task / "config.yml"
@@ -119,6 +131,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     model = ALGOS[args.algo].load(path, device="cpu")
     env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed, **env_kwargs)
+    mismatch = model_env_mismatch(model, env)
+    if mismatch:
+        env.close()
+        print(f"sb3_saeir.enjoy: error: {path} does not fit {args.task}: {mismatch}", file=sys.stderr)
+        return 2
     summary = evaluate_multiagent_policy(model, env, args.n_episodes, deterministic=not args.stochastic)
     env.close()
     print(f"{path}: {int(summary['n_episodes'])} episodes")

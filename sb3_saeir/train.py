@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,8 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.utils import set_random_seed
 
 from sb3_saeir.common.callbacks import EveryAgentSteps
+from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import (
     ALGOS,
     CONFIG_KEYS,
@@ -89,7 +92,11 @@ def save_run_config(params_path: Path, hyperparams: dict[str, Any], args: argpar
 
 
 def train(args: argparse.Namespace) -> Path:
-    """Train one run; returns its folder."""
+    """Train one run; returns its folder.
+
+    Everything that can fail on a bad setting (config, env, model, saved model) is built before the run folder is
+    created, so a bad command leaves no empty run behind.
+    """
     hyperparams = resolve_hyperparams(args)
     if args.trained_agent and not Path(args.trained_agent).is_file():
         raise ConfigError(f"--trained-agent {args.trained_agent} is not a file.")
@@ -98,28 +105,23 @@ def train(args: argparse.Namespace) -> Path:
     set_random_seed(seed)
     save_path = next_run_folder(args.log_folder, args.algo, args.task)
     experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
+    build_experiment(experiment, args)
     params_path = save_path / args.task
     params_path.mkdir(parents=True, exist_ok=False)
-    env = experiment.make_env(monitor=True)
-    if args.trained_agent:
-        experiment.env = env
-        experiment.load(args.trained_agent, device=args.device, tensorboard_log=args.tensorboard_log)
-        reset_num_timesteps = False
-    else:
-        experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=args.tensorboard_log)
-        reset_num_timesteps = True
+    assert experiment.model is not None and experiment.env is not None
+    experiment.model.set_env(MultiAgentVecMonitor(experiment.env, str(save_path / "games"), env_id=args.task))
     save_run_config(params_path, experiment.resolved_hyperparams, argparse.Namespace(**{**vars(args), "seed": seed}))
     n_timesteps = experiment.n_timesteps
-    n_agents = env.num_envs // experiment.n_games
-    print(f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps} agent-steps")
+    n_agents = experiment.env.num_envs // experiment.n_games
+    print(f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} agent-steps")
+    if args.n_timesteps is None:
+        print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
     print(f"Log folder: {save_path}")
     start = time.time()
+    callbacks = [*run_callbacks(args, experiment), BudgetEstimate(n_timesteps)]
     try:
         experiment.learn(
-            n_timesteps,
-            callbacks=run_callbacks(args, experiment),
-            progress_bar=args.progress,
-            reset_num_timesteps=reset_num_timesteps,
+            n_timesteps, callbacks=callbacks, progress_bar=args.progress, reset_num_timesteps=not args.trained_agent
         )
     except KeyboardInterrupt:
         print("Interrupted: saving the model.")
@@ -129,9 +131,53 @@ def train(args: argparse.Namespace) -> Path:
     return save_path
 
 
+def build_experiment(experiment: Experiment, args: argparse.Namespace) -> None:
+    """Build the env and the model (or load ``--trained-agent``); a bad setting becomes a :class:`ConfigError`."""
+    try:
+        if args.trained_agent:
+            experiment.load(args.trained_agent, device=args.device, tensorboard_log=args.tensorboard_log)
+        else:
+            experiment.build(verbose=args.verbose, device=args.device, tensorboard_log=args.tensorboard_log)
+    except (ValueError, TypeError, KeyError, zipfile.BadZipFile) as error:
+        experiment.close()
+        message = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
+        raise ConfigError(f"cannot build {args.algo} on {args.task} with these settings: {message}") from error
+
+
+class BudgetEstimate(BaseCallback):
+    """After the first rollout and update, print how long the whole budget will take at that rate."""
+
+    def __init__(self, total_timesteps: int) -> None:
+        super().__init__()
+        self.total_timesteps = total_timesteps
+        self.start = 0.0
+        self.printed = False
+
+    def _on_training_start(self) -> None:
+        self.start = time.time()
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_start(self) -> None:
+        done = self.model.num_timesteps - self.model._num_timesteps_at_start
+        if self.printed or done <= 0:
+            return
+        self.printed = True
+        rate = done / max(time.time() - self.start, 1e-9)
+        hours = (self.total_timesteps - done) / rate / 3600
+        print(
+            f"First rollout and update: {rate:,.0f} agent-steps/s; the {self.total_timesteps:,} agent-steps take about "
+            f"{hours:.1f} h at this rate (Ctrl-C saves the model and stops).",
+            flush=True,
+        )
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m sb3_saeir.train", description="Train a method from its rl-zoo style YAML config."
+        prog="python -m sb3_saeir.train",
+        description="Train a method from its rl-zoo style YAML config.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--algo", required=True, help=f"method: {', '.join(sorted(ALGOS))}")
     parser.add_argument("--task", "--env", dest="task", default="cn-sparse-n3", help=f"task id: {', '.join(list_tasks())}")
@@ -168,12 +214,13 @@ def main(argv: list[str] | None = None) -> int:
     args = make_parser().parse_args(argv)
     try:
         if args.optimize:
+            require_extra("optuna", "zoo", "--optimize")
             from sb3_saeir.hyperparams_opt import optimize
 
             optimize(args, resolve_hyperparams(args))
         else:
             train(args)
-    except (ConfigError, FileExistsError) as error:
+    except (ConfigError, FileExistsError, MissingExtraError) as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 2
     return 0

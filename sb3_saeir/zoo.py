@@ -89,6 +89,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecEnvWrapper
 
+from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.vec_env import (
     EPISODE_METRICS_KEY,
     MultiAgentVecEnv,
@@ -503,6 +504,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return 2
     command, rest = argv[0], argv[1:]
+    try:
+        require_extra("rl_zoo3", "zoo", "python -m sb3_saeir.zoo")
+    except MissingExtraError as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
     register_algorithms()
     register_gym_envs()
     saved_argv = sys.argv

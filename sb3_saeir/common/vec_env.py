@@ -86,17 +86,18 @@ def check_parallel_env(par_env: Any) -> None:
     obs_space = par_env.observation_space(agents[0])
     act_space = par_env.action_space(agents[0])
     odd_obs = [a for a in agents if par_env.observation_space(a) != obs_space]
-    if odd_obs:
-        raise ValueError(
-            f"Agents {odd_obs} have an observation space different from {agents[0]}'s ({obs_space}). Parameter sharing "
-            "needs identical spaces: wrap the env with supersuit.pad_observations_v0 (and, if needed, "
-            "supersuit.agent_indicator_v0)."
-        )
     odd_act = [a for a in agents if par_env.action_space(a) != act_space]
+    problems, wrappers = [], []
+    if odd_obs:
+        problems.append(f"agents {odd_obs} have an observation space different from {agents[0]}'s ({obs_space})")
+        wrappers.append("supersuit.pad_observations_v0")
     if odd_act:
+        problems.append(f"agents {odd_act} have an action space different from {agents[0]}'s ({act_space})")
+        wrappers.append("supersuit.pad_action_space_v0")
+    if problems:
         raise ValueError(
-            f"Agents {odd_act} have an action space different from {agents[0]}'s ({act_space}). Parameter sharing "
-            "needs identical spaces: wrap the env with supersuit.pad_action_space_v0."
+            f"{'; '.join(problems)}. Parameter sharing needs identical spaces: wrap the env with "
+            f"{' and '.join(wrappers)} (and, to tell the agents apart, supersuit.agent_indicator_v0)."
         )
 
 

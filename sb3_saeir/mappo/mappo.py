@@ -143,6 +143,8 @@ def check_env_argument(algo_name: str, env: Any) -> None:
     :param algo_name: class name for the message
     :param env: the ``env`` argument
     """
+    if isinstance(env, VecEnv):
+        check_observation_space(algo_name, env.observation_space)
     if env is None or isinstance(env, VecEnv):
         return
     example = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
@@ -164,6 +166,24 @@ def check_env_argument(algo_name: str, env: Any) -> None:
     raise ValueError(
         f"{algo_name} needs a multi-agent vec env (one slot per agent of each game), got {type(env).__name__}; "
         f"build one with sb3_saeir.make_multiagent_vec_env (e.g. {example})."
+    )
+
+
+def check_observation_space(algo_name: str, observation_space: spaces.Space) -> None:
+    """Reject observations that are not flat ``Box`` vectors, showing the env's own shape (before SB3 transposes
+    images) and the SuperSuit wrapper that flattens them.
+
+    :param algo_name: class name for the message
+    :param observation_space: one agent's observation space, as the env declares it
+    """
+    if isinstance(observation_space, spaces.Box) and len(observation_space.shape) == 1:
+        return
+    shape = getattr(observation_space, "shape", None)
+    described = f"{type(observation_space).__name__} of shape {shape}" if shape else str(observation_space)
+    raise ValueError(
+        f"{algo_name} needs flat Box observations per agent (a vector), got {described}. Flatten them in the env: "
+        "supersuit.flatten_v0(parallel_env) before make_multiagent_vec_env (images: supersuit.resize_v1 first to keep "
+        "them small)."
     )
 
 

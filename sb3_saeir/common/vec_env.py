@@ -150,6 +150,14 @@ class MultiAgentVecEnv(VecEnv):
 
     Use :func:`make_multiagent_vec_env` to build one.
 
+    With SB3's own callbacks, remember that one ``env.step`` is ``n_games * n_agents`` agent-steps:
+    ``CheckpointCallback(save_freq=...)`` and ``EvalCallback(eval_freq=...)`` count ``env.step`` calls, and
+    ``EvalCallback``'s ``n_eval_episodes`` counts agent slots (each agent's return is an episode). Use
+    :class:`~sb3_saeir.evaluation.MultiAgentEvalCallback` (frequency in agent-steps, episodes per game, the task's
+    metrics) and wrap other callbacks in :class:`~sb3_saeir.common.callbacks.EveryAgentSteps`. SB3's evaluation warns
+    that the env is not wrapped in a ``Monitor``: expected, since episodes are recorded per game by this env itself
+    (a ``VecMonitor`` would count every agent as an episode); do not add one.
+
     :param env_fn: callable returning one PettingZoo ``ParallelEnv`` (one game)
     :param n_games: number of game copies G; the vec env has ``G * n_agents`` slots
     :param num_cpus: SuperSuit worker processes (0 or 1: all games in this process)

@@ -18,9 +18,10 @@ def random_actions(env, rng):
     return rng.integers(0, env.action_space.n, size=env.num_envs)
 
 
-@pytest.fixture
-def env():
-    vec_env = make_multiagent_vec_env("cn-sparse-n3", n_games=3, seed=0)
+@pytest.fixture(params=["native", "supersuit"])
+def env(request):
+    """3 games of ``cn-sparse-n3``, through the native engine and through SuperSuit: both must honour the layout."""
+    vec_env = make_multiagent_vec_env("cn-sparse-n3", n_games=3, seed=0, backend=request.param)
     yield vec_env
     vec_env.close()
 

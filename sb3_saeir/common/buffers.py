@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Generator
-from typing import NamedTuple
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import RolloutBuffer
+
+from sb3_saeir.common.type_aliases import GroupedRecurrentSamples
 
 
 def n_blocks(n_steps: int, n_games: int, data_chunk_length: int) -> int:
@@ -20,30 +21,6 @@ def n_blocks(n_steps: int, n_games: int, data_chunk_length: int) -> int:
     :param data_chunk_length: steps per chunk (the last chunk of a game may be shorter, and is padded)
     """
     return n_games * -(-n_steps // data_chunk_length)
-
-
-class GroupedRecurrentSamples(NamedTuple):
-    """A minibatch of B blocks; a block = one game, one chunk of L consecutive steps, all N agents.
-
-    Shapes: ``observations (L, B, N, d)``, ``actions (L, B, N, action_dim)``, ``old_log_prob (L, B, N)``,
-    ``old_values (L, B, N, K)`` (normalised), ``advantages (L, B, N, K)`` (standardised per scale),
-    ``returns (L, B, N, K)``, ``episode_starts (L, B, N)``, ``actor_states (B, N, H)``, ``critic_states (K, B, N, H)``
-    (stored states at each chunk's first step), ``mask (L, B)`` (False on padding after the rollout's end),
-    ``game_indices (B,)`` and ``time_indices (L, B)`` (where each block's data came from in the buffer).
-    """
-
-    observations: th.Tensor
-    actions: th.Tensor
-    old_log_prob: th.Tensor
-    old_values: th.Tensor
-    advantages: th.Tensor
-    returns: th.Tensor
-    episode_starts: th.Tensor
-    actor_states: th.Tensor
-    critic_states: th.Tensor
-    mask: th.Tensor
-    game_indices: th.Tensor
-    time_indices: th.Tensor
 
 
 class GroupedRecurrentRolloutBuffer(RolloutBuffer):
@@ -268,7 +245,7 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
         for block_ids in np.array_split(permutation, n_minibatches):
             yield self._get_blocks(block_ids, advantages)
 
-    def _get_blocks(self, block_ids: np.ndarray, advantages: np.ndarray) -> GroupedRecurrentSamples:  # type: ignore[override]
+    def _get_blocks(self, block_ids: np.ndarray, advantages: np.ndarray) -> GroupedRecurrentSamples:
         length, n_agents, n_games = self.data_chunk_length, self.n_agents, self.n_games
         games = block_ids % n_games  # (B,)
         chunk_starts = (block_ids // n_games) * length  # (B,)

@@ -7,7 +7,7 @@ observations). Every critic scale sees the N agents of a game together: its inpu
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import torch as th
@@ -25,6 +25,7 @@ from torch import nn
 
 from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm
+from sb3_saeir.common.type_aliases import MultiAgentStates
 
 # SB3 ActorCriticPolicy arguments these policies cannot honour, with what to use instead.
 _UNSUPPORTED_SB3_ARGUMENTS = {
@@ -86,17 +87,6 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
             )
         hint = _UNSUPPORTED_SB3_ARGUMENTS.get(key, "remove the argument")
         raise ValueError(f"{policy_name}: policy argument {key}={value!r} is not supported: {hint}.")
-
-
-class MultiAgentStates(NamedTuple):
-    """Recurrent states of a multi-agent policy.
-
-    :param actor: actor GRU states, ``(n_slots, H)`` with ``n_slots = G * N`` (zeros-size if the actor is an MLP)
-    :param critic: critic GRU states, ``(K, G, N, H)`` for the K critic scales
-    """
-
-    actor: th.Tensor
-    critic: th.Tensor
 
 
 class MultiAgentActorCriticPolicy(ActorCriticPolicy):

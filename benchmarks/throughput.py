@@ -126,7 +126,15 @@ def _patch_bonus(timer: PhaseTimer) -> None:
 
 
 def measure_method(
-    algo: str, task: str, n_games: int, warmup: int, iterations: int, seed: int, device: str, threads: int
+    algo: str,
+    task: str,
+    n_games: int,
+    warmup: int,
+    iterations: int,
+    seed: int,
+    device: str,
+    threads: int,
+    backend: str | None = None,
 ) -> dict:
     """Train ``algo`` in this process and return its figures (run in a fresh process per method).
 
@@ -137,10 +145,17 @@ def measure_method(
 
     torch_device = th.device(device)
     if algo == "random":
-        return _random_stepping(task, n_games, iterations, seed)
+        return _random_stepping(task, n_games, iterations, seed, backend)
     timer = PhaseTimer(torch_device)
     _patch_bonus(timer)
-    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed, device=device)
+    env = None
+    if backend is not None:  # this version's env backends (native NumPy engine or SuperSuit), for a like-for-like split
+        from sb3_saeir import make_multiagent_vec_env
+        from sb3_saeir.config import load_hyperparams
+
+        env_kwargs = load_hyperparams(algo, task).get("env_kwargs") or {}
+        env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, backend=backend, **env_kwargs)
+    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed, env=env, device=device)
     policy = model.policy
     policy.forward = timer.wrap("inference", policy.forward)  # type: ignore[method-assign]
     policy.predict_values = timer.wrap("inference", policy.predict_values)  # type: ignore[method-assign]
@@ -155,6 +170,7 @@ def measure_method(
     wall = time.perf_counter() - start
     steps = model.num_timesteps - start_steps
     phases, n_updates = dict(timer.totals), timer.counts["update"]
+    peak_rss_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before the FLOP count's extra update
 
     from torch.utils.flop_counter import FlopCounterMode
 
@@ -170,14 +186,14 @@ def measure_method(
         "update_gflop": update_gflop,
         "update_gflops": update_gflop / update_seconds if update_seconds > 0 else float("nan"),
         "matmul_gflops": matmul_gflops(torch_device),
-        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "peak_rss_mib": peak_rss_mib,
     }
 
 
-def _random_stepping(task: str, n_games: int, iterations: int, seed: int) -> dict:
+def _random_stepping(task: str, n_games: int, iterations: int, seed: int, backend: str | None) -> dict:
     from sb3_saeir import make_multiagent_vec_env
 
-    env = make_multiagent_vec_env(task, n_games=n_games, seed=seed)
+    env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, **({} if backend is None else {"backend": backend}))
     rng = np.random.default_rng(seed)
     env.reset()
     n_vec_steps = 25 * iterations
@@ -203,13 +219,19 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=3, help="timed iterations (rollout + update)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (the update's figure in the issue: 1)")
     parser.add_argument("--device", default="cpu", help="torch device of the policy: cpu or cuda (needs a GPU build)")
+    parser.add_argument(
+        "--backend",
+        default=None,
+        help="env backend of make_multiagent_vec_env (native or supersuit; default: the version's default, native "
+        "where the task has one). Versions before the native engine have no such argument: leave it out",
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
     context = multiprocessing.get_context("spawn")
     print(
         f"task {args.task}, {args.n_games} games, {args.iterations} timed iterations after {args.warmup}, "
-        f"{args.threads} thread(s), device {args.device}, torch {th.__version__}"
+        f"{args.threads} thread(s), device {args.device}, env backend {args.backend or 'default'}, torch {th.__version__}"
     )
     header = (
         f"{'method':>10} {'agent-steps/s':>13} {'env%':>5} {'inf%':>5} {'upd%':>5} {'bonus%':>6} {'other%':>6} "
@@ -220,7 +242,17 @@ def main() -> None:
         with context.Pool(1) as pool:
             result = pool.apply(
                 measure_method,
-                (algo, args.task, args.n_games, args.warmup, args.iterations, args.seed, args.device, args.threads),
+                (
+                    algo,
+                    args.task,
+                    args.n_games,
+                    args.warmup,
+                    args.iterations,
+                    args.seed,
+                    args.device,
+                    args.threads,
+                    args.backend,
+                ),
             )
         wall, phases = result["wall"], result["phases"]
         shares = {phase: 100.0 * phases.get(phase, 0.0) / wall for phase in PHASES}

@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch as th
 import yaml
 
 from sb3_saeir.common.extras import require_extra
+from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.config import ALGOS, ConfigError, parse_params
 from sb3_saeir.envs import list_tasks, make_task
@@ -110,12 +110,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", default=None, help="write a GIF of one game to this path")
     parser.add_argument("--gif-episodes", type=int, default=1)
-    parser.add_argument("--num-threads", type=int, default=1)
+    parser.add_argument("--num-threads", type=int, default=0, help="torch threads (0: the free cores, at most 2)")
     parser.add_argument(
         "--env-kwargs", nargs="+", default=None, help="task keyword arguments key:value (default: the run's env_kwargs)"
     )
     args = parser.parse_args(argv)
-    th.set_num_threads(args.num_threads)
+    set_num_threads(args.num_threads)
     if args.algo not in ALGOS:
         print(f"sb3_saeir.enjoy: error: unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
         return 2

@@ -21,13 +21,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch as th
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.utils import set_random_seed
 
 from sb3_saeir.common.callbacks import EveryAgentSteps
 from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import (
     ALGOS,
@@ -100,7 +100,7 @@ def train(args: argparse.Namespace) -> Path:
     hyperparams = resolve_hyperparams(args)
     if args.trained_agent and not Path(args.trained_agent).is_file():
         raise ConfigError(f"--trained-agent {args.trained_agent} is not a file.")
-    th.set_num_threads(args.num_threads)
+    set_num_threads(args.num_threads)
     seed = int(np.random.randint(2**31 - 1)) if args.seed < 0 else args.seed
     set_random_seed(seed)
     save_path = next_run_folder(args.log_folder, args.algo, args.task)
@@ -191,7 +191,13 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("-f", "--log-folder", default="logs", help="log folder")
     parser.add_argument("-tb", "--tensorboard-log", default=None, help="tensorboard log folder")
     parser.add_argument("--device", default="cpu", help="torch device")
-    parser.add_argument("--num-threads", type=int, default=1, help="torch threads (1 is fastest on small machines)")
+    parser.add_argument(
+        "--num-threads",
+        type=int,
+        default=0,
+        help="torch threads; 0: the free cores, at most 2 (measured fastest for one job on 2 cores); use 1 when several "
+        "jobs share the machine",
+    )
     parser.add_argument(
         "--num-cpus", type=int, default=None, help="env worker processes (overrides the config's num_cpus; 0: in this process)"
     )

@@ -1,11 +1,14 @@
 """Shared fixtures: the tiny navigation env most tests train on, tiny algorithm budgets, a toy cooperative game."""
 
+import os
+
 import pytest
 import torch
 
 from sb3_saeir import make_multiagent_vec_env
 
 torch.set_num_threads(1)
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # the CLIs' default thread count follows it: tests run side by side
 
 
 @pytest.fixture

@@ -1,6 +1,7 @@
 """Benchmark runner: CSV, table and curves from tiny runs; resume; failures; the Ray path; the entropy plot."""
 
 import csv
+import json
 import shutil
 import socket
 import subprocess
@@ -52,6 +53,23 @@ def test_csv_table_figure(finished):
     assert "cn-sparse-n3 Coverage %" in table
     assert (out / "curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "IQM" in (out / "aggregate.md").read_text()
+
+
+def test_run_folders_hold_their_spec(finished):
+    out, _ = finished
+    spec = json.loads((out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1" / "spec.json").read_text())
+    assert {key: spec[key] for key in ("algo", "task", "seed", "n_timesteps", "n_games", "eval_freq", "eval_episodes")} == {
+        "algo": "saeir_ppo",
+        "task": "cn-sparse-n3",
+        "seed": 1,
+        "n_timesteps": 200,
+        "n_games": 2,
+        "eval_freq": 100,
+        "eval_episodes": 2,
+    }
+    assert spec["params"] == {"n_steps": 10} and spec["config"]["n_steps"] == 10 and spec["version"]
+    done = json.loads((out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1" / "done.json").read_text())
+    assert done["segments"] == 1 and done["timesteps"] == 240 and done["wall_s"] > 0
 
 
 def test_rerun_skips_finished_runs(finished, capsys):

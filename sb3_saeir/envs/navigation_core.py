@@ -80,6 +80,23 @@ def _check_choice(name: str, value: str, choices: Sequence[str]) -> str:
     return value
 
 
+# Arrays of the core that a resume state holds (per-game parameters, physical state, episode bookkeeping).
+_RESUME_ARRAYS = (
+    "max_cycles",
+    "cover_radius",
+    "collision_penalty",
+    "positions",
+    "velocities",
+    "landmarks",
+    "steps",
+    "reached",
+    "covered_sum",
+    "collision_steps",
+    "reach_events",
+    "last_covered",
+)
+
+
 class NavigationCore:
     """The state and dynamics of ``n_games`` Cooperative Navigation games, stepped together.
 
@@ -196,6 +213,48 @@ class NavigationCore:
         if landmark_positions is not None:
             self.landmarks[game] = np.asarray(landmark_positions, dtype=np.float64).reshape(self.N, 2)
         self.velocities[game] = 0.0 if velocities is None else np.asarray(velocities, dtype=np.float64).reshape(self.N, 2)
+
+    # ------------------------------------------------------------------ resume state
+    def get_resume_state(self) -> dict[str, Any]:
+        """Everything that determines the games' future: per-game parameters, physical state, episode bookkeeping and
+        each game's generator state (``bit_generator.state``); copies, safe to pickle.
+
+        :return: a dict for :meth:`set_resume_state`
+        """
+        state: dict[str, Any] = {
+            "layout": self._layout(),
+            "rngs": [rng.bit_generator.state for rng in self.rngs],
+        }
+        state.update({name: getattr(self, name).copy() for name in _RESUME_ARRAYS})
+        return state
+
+    def set_resume_state(self, state: dict[str, Any]) -> None:
+        """Put the games back in the state returned by :meth:`get_resume_state` (same number of games, agents,
+        world, reward reading and action type).
+
+        :param state: a dict from :meth:`get_resume_state`
+        :raises ValueError: when the state was taken from a core of another layout
+        """
+        if state["layout"] != self._layout():
+            raise ValueError(f"resume state of a core {state['layout']} cannot be put into a core {self._layout()}.")
+        for name in _RESUME_ARRAYS:
+            setattr(self, name, np.array(state[name], dtype=getattr(self, name).dtype, copy=True))
+        rngs = []
+        for rng_state in state["rngs"]:
+            rng = np.random.Generator(getattr(np.random, rng_state["bit_generator"])())
+            rng.bit_generator.state = rng_state
+            rngs.append(rng)
+        self.rngs = rngs
+
+    def _layout(self) -> dict[str, Any]:
+        """What a resume state must agree on: games, agents, world, reward reading, action type."""
+        return {
+            "n_games": self.n_games,
+            "N": self.N,
+            "world": self.world,
+            "reward": self.reward,
+            "continuous_actions": self.continuous_actions,
+        }
 
     # ------------------------------------------------------------------ dynamics
     def action_forces(self, actions: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ game's end). The task is described in ``docs/tasks.md``.
 
 from __future__ import annotations
 
+import copy
 import time
 import warnings
 from collections.abc import Sequence
@@ -231,6 +232,44 @@ class NavigationVecEnv(MultiAgentVecEnv):
             # (G, N, obs_dim) -> (G * N, obs_dim): the first observations of the new episodes replace the last ones
             obs = self.core.observations().reshape(G * N, -1)
         return obs, rewards, dones, infos
+
+    # ------------------------------------------------------------------ resume state
+    def get_resume_state(self) -> dict[str, Any]:
+        """Everything that determines the env's future streams, for exact resumption of training (the benchmark's
+        checkpoints): the core's arrays and each game's generator state, the running episode returns and lengths, the
+        episode counter and any seed or options waiting for the next reset. Copies, safe to pickle.
+
+        Call it between steps (not between ``step_async`` and ``step_wait``). The ``t`` of the episode records
+        (seconds since the env was made) is wall-clock time and is not part of the state.
+
+        :return: a dict for :meth:`set_resume_state`
+        """
+        return {
+            "core": self.core.get_resume_state(),
+            "episode_returns": self._episode_returns.copy(),
+            "episode_lengths": self._episode_lengths.copy(),
+            "episode_count": self.episode_count,
+            "game_seed": self._game_seed,
+            "seeds": list(self._seeds),
+            "options": copy.deepcopy(self._options),
+        }
+
+    def set_resume_state(self, state: dict[str, Any]) -> None:
+        """Put the env back in the state returned by :meth:`get_resume_state` of an env made with the same settings:
+        the next ``step`` gives what the original env's next ``step`` gave.
+
+        :param state: a dict from :meth:`get_resume_state`
+        :raises ValueError: when the state comes from an env with another number of games, agents, world, reward
+            reading or action type
+        """
+        self.core.set_resume_state(state["core"])
+        self._episode_returns = np.array(state["episode_returns"], dtype=np.float64, copy=True)
+        self._episode_lengths = np.array(state["episode_lengths"], dtype=np.int64, copy=True)
+        self.episode_count = int(state["episode_count"])
+        self._game_seed = state["game_seed"]
+        self._seeds = list(state["seeds"])
+        self._options = copy.deepcopy(state["options"])
+        self._actions = None
 
     # ------------------------------------------------------------------ SB3 VecEnv API
     def close(self) -> None:

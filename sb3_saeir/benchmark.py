@@ -638,8 +638,8 @@ class BenchmarkEvalCallback(MultiAgentEvalCallback):
 
 # ---------------------------------------------------------------------------------------------------- one run
 def _open_checkpoint(experiment: Any, checkpoint: Path, log: Callable[[str], None]) -> tuple[Any, dict | None]:
-    """Load the model of a checkpoint onto the experiment's env, and its resume state when exact resumption is
-    possible (else say why in the log and return ``None`` for the state).
+    """Load the model of a checkpoint onto the experiment's env, and its resume state; say in the log when the
+    resumption can only be approximate (no resume state, or an env that cannot save its state).
 
     :param experiment: the run's built :class:`~sb3_saeir.experiment.Experiment`
     :param checkpoint: ``checkpoint.zip``
@@ -648,6 +648,7 @@ def _open_checkpoint(experiment: Any, checkpoint: Path, log: Callable[[str], Non
     """
     model = experiment.load(checkpoint)
     state = load_resume_state(checkpoint)
+    log(f"resumed from the checkpoint at {model.num_timesteps} agent-steps")
     if state is None:
         log("the checkpoint has no resume state (older version): resuming approximately")
     elif state["env"] is None or resumable_env(model.get_env()) is None:
@@ -677,7 +678,8 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
     if (path / "done.json").is_file():
         return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(evaluations_path)}
     log = RunLog(path, spec.name)
-    experiment = Experiment(spec.algo, spec.task, record["config"], seed=spec.seed, n_games=spec.n_games)
+    config = {**load_hyperparams(spec.algo, spec.task), **spec.params}  # as given (spec.json holds its JSON form)
+    experiment = Experiment(spec.algo, spec.task, config, seed=spec.seed, n_games=spec.n_games)
     model = experiment.build()
     assert experiment.env is not None
     n_agents = experiment.env.num_envs // experiment.n_games
@@ -688,14 +690,7 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
         model, state = _open_checkpoint(experiment, checkpoint, log)
     done_steps = model.num_timesteps if resumed else 0
     clock = SegmentClock(path / "segments.json", done_steps)
-    old_rows = read_rows(evaluations_path)
-    rows = [row for row in old_rows if resumed and row["timesteps"] <= done_steps]
-    lost = {int(row["timesteps"]): row for row in old_rows if not resumed or row["timesteps"] > done_steps}
-    if resumed:
-        log(f"resumed from the checkpoint at {done_steps} agent-steps")
-    if lost:
-        log(f"evaluations after the checkpoint, at {sorted(lost)} agent-steps, are re-done")
-    write_rows(evaluations_path, rows)
+    rows, lost = _split_rows(evaluations_path, done_steps if resumed else None, log)
     rollout = int(getattr(model, "n_steps", 1)) * experiment.env.num_envs
     model.set_logger(progress_logger(path, done_steps if resumed else None, done_steps // rollout))
     evaluator = BenchmarkEvalCallback(
@@ -713,7 +708,8 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
         clock=clock,
         log=log,
     )
-    if state is not None and state["env"] is None:  # approximate: learn() resets the env and the recurrent states
+    exact = state is not None and state["env"] is not None and resumable_env(model.get_env()) is not None
+    if resumed and not exact:  # approximate: learn() resets the env and the recurrent states
         model._last_obs = None  # type: ignore[assignment]
     remaining = spec.n_timesteps - done_steps
     if remaining > 0:
@@ -725,11 +721,36 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
         evaluator.init_callback(model)
         evaluator.evaluate()  # final evaluation
     experiment.close()
-    clock.tick(model.num_timesteps)
-    summary = {"wall_s": round(clock.total_s, 1), "segments": len(clock.segments), "timesteps": model.num_timesteps}
-    atomic_write_text(path / "done.json", json.dumps(summary))
-    checkpoint.unlink(missing_ok=True)
+    _finish(path, clock, model.num_timesteps)
     return {"spec": asdict(spec), "status": "done", "rows": rows, "wall_s": clock.total_s}
+
+
+def _split_rows(
+    path: Path, done_steps: int | None, log: Callable[[str], None]
+) -> tuple[list[dict[str, Any]], dict[int, dict[str, Any]]]:
+    """The evaluation rows a run keeps (made up to its checkpoint) and those it re-does (made after it, by a segment
+    that was interrupted), by agent-steps; ``evaluations.csv`` is rewritten with the kept rows.
+
+    :param path: the run's ``evaluations.csv``
+    :param done_steps: agent-steps of the checkpoint, ``None`` for a fresh start (every row is re-done)
+    :param log: the run's log
+    """
+    old_rows = read_rows(path)
+    rows = [row for row in old_rows if done_steps is not None and row["timesteps"] <= done_steps]
+    lost = {int(row["timesteps"]): row for row in old_rows if done_steps is None or row["timesteps"] > done_steps}
+    if lost:
+        since = "the start" if done_steps is None else "the checkpoint"
+        log(f"evaluations made after {since}, at {sorted(lost)} agent-steps, are re-done")
+    write_rows(path, rows)
+    return rows, lost
+
+
+def _finish(path: Path, clock: SegmentClock, timesteps: int) -> None:
+    """Write ``done.json`` (total wall time over the segments) and remove the checkpoint."""
+    clock.tick(timesteps)
+    summary = {"wall_s": round(clock.total_s, 1), "segments": len(clock.segments), "timesteps": timesteps}
+    atomic_write_text(path / "done.json", json.dumps(summary))
+    (path / CHECKPOINT_FILE).unlink(missing_ok=True)
 
 
 def _safe_execute(spec: RunSpec, folder: str) -> dict[str, Any]:

@@ -200,7 +200,8 @@ def test_lost_evaluation_is_redone_and_said(tmp_path, monkeypatch):
     execute_run(spec, str(folder))
     log = (folder / "resume.log").read_text()
     assert "resumed from the checkpoint at 180 agent-steps" in log
-    assert "at [204] agent-steps, are re-done" in log and "evaluation at 204 agent-steps re-done: identical" in log
+    assert "after the checkpoint, at [204] agent-steps, are re-done" in log
+    assert "evaluation at 204 agent-steps re-done: identical" in log
     assert read_csv(folder / "evaluations.csv") == read_csv(tmp_path / "uninterrupted" / "evaluations.csv")
 
 

@@ -1016,14 +1016,22 @@ def report(out: Path, specs: list[RunSpec], use_rliable: bool = False) -> list[d
     return rows
 
 
-def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]]) -> str:
-    """The message of a command whose runs differ from those already in ``out``: one line per run, then the fix."""
+def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only: bool = False) -> str:
+    """The message of a command whose runs differ from those already in ``out``: one line per run, then the fix.
+
+    :param out: the benchmark folder
+    :param mismatches: each mismatching run with its differences (:func:`spec_differences`)
+    :param report_only: the command only reports (``--rerun-changed`` does not apply)
+    """
     lines = [f"sb3_saeir.benchmark: error: {len(mismatches)} run(s) in {out} were made with other settings:"]
     lines += [f"  {spec.name}: {'; '.join(differences)}" for spec, differences in mismatches]
-    lines.append(
-        "fix: use another --out for these settings, or add --rerun-changed to move these runs aside "
-        "(to <folder>.replaced-<UTC time>, nothing deleted) and train them again"
-    )
+    if report_only:
+        lines.append("fix: give --report-only the settings these runs were made with (the old values above)")
+    else:
+        lines.append(
+            "fix: use another --out for these settings, or add --rerun-changed to move these runs aside "
+            "(to <folder>.replaced-<UTC time>, nothing deleted) and train them again"
+        )
     return "\n".join(lines)
 
 
@@ -1127,7 +1135,7 @@ def _main(args: argparse.Namespace) -> int:
     mismatches = [(spec, stored_spec_differences(run_folder(out, spec), spec_record(spec))) for spec in specs]
     mismatches = [(spec, differences) for spec, differences in mismatches if differences]
     if mismatches and (args.report_only or not args.rerun_changed):
-        print(refusal(out, mismatches), file=sys.stderr)
+        print(refusal(out, mismatches, args.report_only), file=sys.stderr)
         return 2
     failures: list[str] = []
     if not args.report_only:

@@ -153,6 +153,9 @@ def test_other_settings_are_refused_before_anything_changes(runs, capsys, change
     assert lines[1] == f"  mappo/cn-sparse-n3_s1: {message}" and len(lines) == 5
     assert "another --out" in lines[-1] and "--rerun-changed" in lines[-1]
     assert snapshot(reference) == before
+    assert main(["--algos", *ALGOS, *ARGV, *change, "--out", str(reference), "--report-only"]) == 2
+    assert "fix: give --report-only the settings" in capsys.readouterr().err
+    assert snapshot(reference) == before
 
 
 def test_folder_without_spec_is_refused(tmp_path, capsys):

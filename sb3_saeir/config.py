@@ -206,13 +206,21 @@ def build_callbacks(spec: Any) -> list[BaseCallback]:
 def parse_policy_kwargs(policy_kwargs: Any) -> dict[str, Any]:
     """A dict, or a string evaluated with ``nn`` (torch.nn) in scope, as rl-zoo does.
 
-    Also used for ``intrinsic_kwargs``, so that
-    ``-params "intrinsic_kwargs:dict(variant='paper')"`` works like rl-zoo's ``policy_kwargs``.
+    Also used for ``env_kwargs`` and ``intrinsic_kwargs``, so that ``-params "env_kwargs:dict(N=3, reward='reach')"``
+    and ``-params "intrinsic_kwargs:dict(variant='paper')"`` work like rl-zoo's ``policy_kwargs``.
     """
     if policy_kwargs is None:
         return {}
     if isinstance(policy_kwargs, str):
-        return dict(eval(policy_kwargs, {"nn": nn, "dict": dict}))
+        try:
+            value = eval(policy_kwargs, {"nn": nn, "dict": dict})
+        except Exception as error:  # the user's expression: any failure is a bad config value
+            raise ConfigError(f"cannot evaluate {policy_kwargs!r}: {type(error).__name__}: {error}.") from error
+        if not isinstance(value, dict):
+            raise ConfigError(f"{policy_kwargs!r} evaluates to {type(value).__name__}, expected a dict.")
+        return value
+    if not isinstance(policy_kwargs, dict):
+        raise ConfigError(f"expected a dict or a string like \"dict(key=value)\", got {policy_kwargs!r}.")
     return dict(policy_kwargs)
 
 
@@ -242,7 +250,8 @@ def build_model(
     resolved["n_envs"] = games
     if env is None:
         num_cpus = int(params.get("num_cpus", 0))
-        env = make_multiagent_vec_env(task, n_games=games, seed=seed, num_cpus=num_cpus, **(params.get("env_kwargs") or {}))
+        env_kwargs = parse_policy_kwargs(params.get("env_kwargs"))
+        env = make_multiagent_vec_env(task, n_games=games, seed=seed, num_cpus=num_cpus, **env_kwargs)
     algo_kwargs = {key: value for key, value in params.items() if key not in CONFIG_KEYS}
     if "intrinsic_kwargs" in algo_kwargs:
         algo_kwargs["intrinsic_kwargs"] = parse_policy_kwargs(algo_kwargs["intrinsic_kwargs"])

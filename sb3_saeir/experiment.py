@@ -23,7 +23,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, build_model, load_hyperparams
+from sb3_saeir.config import ALGOS, build_model, load_hyperparams, parse_policy_kwargs
 from sb3_saeir.envs import get_task_spec
 from sb3_saeir.evaluation import MultiAgentEvalCallback
 
@@ -75,7 +75,7 @@ class Experiment:
     @property
     def env_kwargs(self) -> dict[str, Any]:
         """The task's keyword arguments from the config (``env_kwargs``)."""
-        return dict(self.hyperparams.get("env_kwargs") or {})
+        return parse_policy_kwargs(self.hyperparams.get("env_kwargs"))
 
     @property
     def n_timesteps(self) -> int:

@@ -215,6 +215,8 @@ BAD_COMMAND_LINES = [
     (["-params", "env_kwargs:{N: 3, radius: 0.2}"], "unexpected keyword argument 'radius'"),
     (["-params", "env_kwargs:{N: 3, world: mpe3}"], "world"),
     (["-params", "no_such_key:1"], "unknown config key 'no_such_key'"),
+    (["-params", "policy_kwargs:dict(hidden_size=)"], "cannot evaluate 'dict(hidden_size=)': SyntaxError"),
+    (["-params", "env_kwargs:dict(N=3, world='mpe3')"], "world"),
     (["-params", "learning_rate:fast"], "learning_rate='fast' has type str"),
     (["-params", "n_steps"], "is not key:value"),
     (["-params", "num_cpus:-1"], "num_cpus (env worker processes) must be an integer >= 0"),
@@ -234,6 +236,13 @@ def test_bad_command_line(log_folder, capsys, extra, message):
     assert err.startswith("sb3_saeir.train: error: ") and "\n" not in err, err
     assert message in err, err
     assert snapshot(log_folder) == before  # no new run folder, nothing changed
+
+
+def test_env_kwargs_as_a_dict_string_work(tmp_path):
+    argv = [*BASE, "-f", str(tmp_path), "-params", "n_steps:10", "env_kwargs:dict(N=3, reward='reach', world='mpe2')"]
+    assert train_main(argv) == 0
+    config = (tmp_path / "saeir_ppo" / "cn-sparse-n3_1" / "cn-sparse-n3" / "config.yml").read_text()
+    assert "reach" in config and "mpe2" in config
 
 
 def test_unknown_algorithm(log_folder, capsys):

@@ -1,7 +1,7 @@
 PYTHON ?= .venv/bin/python
 LINT_PATHS = sb3_saeir/ tests/ examples/ benchmarks/
 
-.PHONY: install test pytest test-slow lint format check-codestyle type missing-annotations commit-checks quickstart ci clean
+.PHONY: install test pytest test-slow lint format check-codestyle type missing-annotations commit-checks quickstart docs docs-linkcheck ci clean
 
 install:
 	bash scripts/install.sh tests,zoo,plots,ray
@@ -33,8 +33,16 @@ commit-checks: format type lint
 quickstart:
 	bash scripts/quickstart.sh
 
+# The documentation site (needs the docs extra): warnings are errors; then internal links (external ones are skipped).
+docs:
+	$(PYTHON) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
+
+docs-linkcheck:
+	$(PYTHON) -m sphinx -W --keep-going -q -b linkcheck docs docs/_build/linkcheck
+
 ci:
 	bash .ci/run
 
 clean:
-	rm -rf .mypy_cache .ruff_cache .pytest_cache build dist *.egg-info
+	rm -rf .mypy_cache .ruff_cache .pytest_cache build dist *.egg-info docs/_build

@@ -98,7 +98,7 @@ def verdict(trained: dict[str, float], random: dict[str, float], fire_rate: floa
     noise = 2.0 * math.hypot(standard_error(trained, "coverage_rate"), standard_error(random, "coverage_rate"))
     if diff > noise:
         learned = f"the policy's coverage rate is {diff:.3f} above random's, more than the evaluation noise (±{noise:.3f})"
-        advice = "it has started to learn; train longer (--timesteps) for more"
+        advice = "it has started to learn, train longer (--timesteps) for more"
     elif diff < -noise:
         learned = f"the policy's coverage rate is {-diff:.3f} below random's, more than the evaluation noise (±{noise:.3f})"
         advice = "it has not learned to navigate yet (the paper trains 60M agent-steps; see docs/results.md)"
@@ -111,7 +111,7 @@ def verdict(trained: dict[str, float], random: dict[str, float], fire_rate: floa
         bonus = "the SAEIR bonus almost never fired, so the extrinsic reward alone drove training"
     else:
         bonus = f"the SAEIR bonus fired on {100 * fire_rate:.1f}% of agent-steps"
-    return f"After {timesteps:,} agent-steps {learned} and {bonus}: {advice}."
+    return f"After {timesteps:,} agent-steps {learned}: {advice}; {bonus}."
 
 
 def training_coverage(progress_csv: str) -> tuple[list[int], list[float]]:

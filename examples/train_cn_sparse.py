@@ -266,7 +266,7 @@ def main() -> None:
             indent=2,
         )
     print(f"\nWritten in {args.out}/ after {time.time() - start:.0f} s (training {train_seconds:.0f} s):")
-    print(f"  model.zip           the trained model ({name}.load('{model_path}'))")
+    print(f"  model.zip           the trained model ({type(model).__name__}.load('{model_path}'))")
     print("  progress.csv        every logged value; tensorboard events: tensorboard --logdir " + args.out)
     print("  eval.json           the comparison above")
     print("  learning_curve.png  coverage over agent-steps, random policy marked")

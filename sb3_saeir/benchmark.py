@@ -70,6 +70,7 @@ import cloudpickle
 import numpy as np
 from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
 
+from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.config import ALGOS, ConfigError, check_hyperparams, load_hyperparams, parse_params
 from sb3_saeir.evaluation import MultiAgentEvalCallback
 
@@ -309,7 +310,7 @@ def set_rng_states(states: dict[str, Any]) -> None:
 def resumable_env(env: Any) -> Any | None:
     """The training env if it can save and restore its exact state (``get_resume_state``), else ``None``.
 
-    SB3 ``VecEnvWrapper``s forward attribute look-ups to the env they wrap but keep state of their own, so a wrapped
+    SB3 SB3 ``VecEnvWrapper`` objects forward attribute look-ups to the env they wrap but keep state of their own, so a wrapped
     env counts as not resumable.
     """
     from stable_baselines3.common.vec_env import VecEnvWrapper
@@ -1115,8 +1116,27 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def _missing_extra(args: argparse.Namespace) -> str | None:
+    """Check, before any training, that the optional packages this command needs are installed."""
+    needed = [("matplotlib", "plots", "the benchmark's curves.png")]
+    if args.rliable:
+        needed.append(("rliable", "plots", "--rliable"))
+    if args.ray_address is not None:
+        needed.append(("ray", "ray", "--ray-address"))
+    for module, extra, purpose in needed:
+        try:
+            require_extra(module, extra, purpose)
+        except MissingExtraError as error:
+            return str(error)
+    return None
+
+
 def _main(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    missing = _missing_extra(args)
+    if missing is not None:
+        print(f"sb3_saeir.benchmark: error: {missing}", file=sys.stderr)
+        return 2
     if args.entropy_plot:
         plot_system_entropy(Path(args.entropy_plot), Path(args.entropy_plot) / "system_entropy.png")
         print(f"wrote {Path(args.entropy_plot) / 'system_entropy.png'}")

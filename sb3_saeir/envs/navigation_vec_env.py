@@ -156,18 +156,6 @@ class NavigationVecEnv(MultiAgentVecEnv):
         self.core.reset_games()
 
     # ------------------------------------------------------------------ seeding / reset
-    def seed(self, seed: int | None = None) -> Sequence[int | None]:
-        """Seed all games at the next reset: game ``g`` gets ``seed + g`` (agents of a game share its seed).
-
-        :param seed: base seed; ``None`` draws one
-        :return: the seed of every slot
-        """
-        if seed is None:
-            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
-        self._game_seed = int(seed)
-        self._seeds = [self._game_seed + self.game_of(i) for i in range(self.num_envs)]
-        return self._seeds
-
     def reset(self, seed: int | None = None, options: dict | None = None) -> VecEnvObs:
         """Reset every game.
 

@@ -310,7 +310,7 @@ def set_rng_states(states: dict[str, Any]) -> None:
 def resumable_env(env: Any) -> Any | None:
     """The training env if it can save and restore its exact state (``get_resume_state``), else ``None``.
 
-    SB3 SB3 ``VecEnvWrapper`` objects forward attribute look-ups to the env they wrap but keep state of their own, so a wrapped
+    SB3 ``VecEnvWrapper`` objects forward attribute look-ups to the env they wrap but keep state of their own, so a wrapped
     env counts as not resumable.
     """
     from stable_baselines3.common.vec_env import VecEnvWrapper

@@ -495,7 +495,7 @@ def make_multiagent_vec_env(
 
 
 def is_multiagent_vec_env(env: Any) -> bool:
-    """True if ``env`` (possibly wrapped in SB3 ``VecEnvWrapper``s) exposes ``n_agents`` and ``n_games``."""
+    """True if ``env`` (possibly inside SB3 ``VecEnvWrapper`` objects) exposes ``n_agents`` and ``n_games``."""
     return getattr(env, "n_agents", None) is not None and getattr(env, "n_games", None) is not None
 
 

@@ -369,6 +369,10 @@ class MultiAgentVecEnv(VecEnv):
         if self.render_mode is None:
             warnings.warn("render() called but the task was created without render_mode.", stacklevel=2)
             return None
+        return self._render_game_zero()
+
+    def _render_game_zero(self) -> np.ndarray | None:
+        """The frame of game 0 (``render`` has checked the render mode)."""
         frame = self.venv.render()
         return frame if self.render_mode == "rgb_array" else None
 

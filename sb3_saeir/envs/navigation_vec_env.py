@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import time
-import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -267,22 +266,8 @@ class NavigationVecEnv(MultiAgentVecEnv):
         """Picture of game 0; ``None`` for the other slots."""
         return [self.core.render(0)] + [None] * (self.num_envs - 1)
 
-    def render(self, mode: str | None = None) -> np.ndarray | None:
-        """Render game 0.
-
-        :param mode: must be ``None`` or the ``render_mode`` given to the task
-        :return: an RGB array of game 0 in ``rgb_array`` mode, else ``None``
-        """
-        if mode is not None and mode != self.render_mode:
-            warnings.warn(
-                f"render(mode={mode!r}) ignored: the render mode is fixed when the task is created "
-                f"(here {self.render_mode!r}); pass render_mode={mode!r} to make_multiagent_vec_env.",
-                stacklevel=2,
-            )
-            return None
-        if self.render_mode is None:
-            warnings.warn("render() called but the task was created without render_mode.", stacklevel=2)
-            return None
+    def _render_game_zero(self) -> np.ndarray | None:
+        """The frame of game 0, drawn by the engine (``render`` has checked the render mode)."""
         return self.core.render(0)
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:

@@ -242,6 +242,8 @@ def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
         time.sleep(60)
 
     monkeypatch.setattr(benchmark, "execute_run", slow)
+    # a terminal's Ctrl-C: SIGINT raises KeyboardInterrupt (pytest-xdist workers and background jobs ignore SIGINT)
+    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT))
     start = time.time()
     timer.start()
@@ -249,6 +251,7 @@ def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
         assert main(["--algos", "mappo", *ARGV, "--seeds", "1-3", "--jobs", "2", "--out", str(tmp_path)]) == 130
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, previous_handler)
     assert time.time() - start < 30
     assert capsys.readouterr().err == INTERRUPTED + "\n"
     assert multiprocessing.active_children() == []

@@ -337,6 +337,23 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         :param episode_starts: ``(L, B, N)``
         :return: normalised values ``(L, B, N, K)``, log-probs ``(L, B, N)``, entropy ``(L, B, N)``
         """
+        log_prob, entropy = self.evaluate_actor(obs, actions, actor_states, episode_starts)
+        values = th.stack(
+            [self.evaluate_critic(k, obs, critic_states[k], episode_starts) for k in range(self.n_scales)], dim=-1
+        )  # K x (L, B, N) -> (L, B, N, K)
+        return values, log_prob, entropy
+
+    def evaluate_actor(
+        self, obs: th.Tensor, actions: th.Tensor, actor_states: th.Tensor, episode_starts: th.Tensor
+    ) -> tuple[th.Tensor, th.Tensor]:
+        """Re-run the actor over chunks of whole games: log-probs and entropy of the stored actions.
+
+        :param obs: ``(L, B, N, d)``
+        :param actions: ``(L, B, N, action_dim)``
+        :param actor_states: ``(B, N, H)`` stored actor states at each chunk's first step
+        :param episode_starts: ``(L, B, N)``
+        :return: log-probs ``(L, B, N)`` and entropy ``(L, B, N)``
+        """
         n_steps, n_blocks, n_agents = obs.shape[:3]
         flat_obs = obs.reshape(n_steps, n_blocks * n_agents, -1)  # (L, B * N, d)
         flat_starts = episode_starts.reshape(n_steps, n_blocks * n_agents)  # (L, B * N)
@@ -349,8 +366,24 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         log_prob = distribution.log_prob(flat_actions).reshape(n_steps, n_blocks, n_agents)
         entropy = distribution.entropy()
         entropy = entropy.reshape(n_steps, n_blocks, n_agents) if entropy is not None else -log_prob
-        values, _ = self._critic_values(obs.reshape(n_steps, n_blocks, n_agents, -1), critic_states, episode_starts)
-        return values, log_prob, entropy
+        return log_prob, entropy
+
+    def evaluate_critic(self, k: int, obs: th.Tensor, critic_states: th.Tensor, episode_starts: th.Tensor) -> th.Tensor:
+        """Re-run critic scale ``k`` over chunks of whole games (the algorithm back-propagates one network at a time).
+
+        :param k: index of the scale in :attr:`scales`
+        :param obs: ``(L, B, N, d)``
+        :param critic_states: ``(B, N, H)`` the scale's stored states at each chunk's first step
+        :param episode_starts: ``(L, B, N)``
+        :return: normalised values ``(L, B, N)``
+        """
+        n_steps, n_blocks, n_agents = obs.shape[:3]
+        critic = list(self.critics.values())[k]
+        # (L, B, N, *obs_shape) -> (L, B, N, d)
+        values, _ = critic(
+            obs.reshape(n_steps, n_blocks, n_agents, -1), critic_states, episode_starts, gumbel_noise=self.critic_gumbel_noise
+        )
+        return values
 
     # ------------------------------------------------------------------------------------------------ inference
     def get_distribution(  # type: ignore[override]
@@ -439,9 +472,7 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
     ) -> None:
         unknown = [scale for scale in scales if scale not in SCALES]
         if isinstance(scales, str) or not scales or unknown or len(set(scales)) != len(scales):
-            raise ValueError(
-                f"MSHGPolicy: scales must be a non-empty subset of {SCALES}, each at most once, got {scales!r}."
-            )
+            raise ValueError(f"MSHGPolicy: scales must be a non-empty subset of {SCALES}, each at most once, got {scales!r}.")
         self.critic_scales = tuple(scale for scale in SCALES if scale in scales)
         if group_size < 1 or n_edge_types < 1:
             raise ValueError(f"MSHGPolicy: group_size and n_edge_types must be >= 1, got {group_size} and {n_edge_types}.")

@@ -12,10 +12,10 @@ from __future__ import annotations
 from collections import Counter
 
 import numpy as np
-import torch as th
 
 from sb3_saeir import MAPPO, make_multiagent_vec_env
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.intrinsic import IntrinsicRewardCallback
 
 
@@ -40,7 +40,7 @@ class PositionCountBonus(IntrinsicRewardCallback):
 
 
 if __name__ == "__main__":
-    th.set_num_threads(1)
+    set_num_threads(None)  # the free cores, at most 2 (OMP_NUM_THREADS wins); see docs/guide/faq.md
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=8, seed=0)
     model = MAPPO("MAPPOPolicy", env, seed=0, verbose=1)
     model.learn(20_000, callback=PositionCountBonus())

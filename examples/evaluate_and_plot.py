@@ -17,9 +17,9 @@ import math
 import os
 
 import numpy as np
-import torch as th
 
 from sb3_saeir import make_multiagent_vec_env
+from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.config import ALGOS
 from sb3_saeir.enjoy import record_gif
 from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
@@ -52,7 +52,7 @@ def main() -> None:
     parser.add_argument("--gif", action="store_true", help="also write replay.gif (2 episodes)")
     parser.add_argument("--out", default=None, help="output folder (default: the model's folder)")
     args = parser.parse_args()
-    th.set_num_threads(1)
+    set_num_threads(None)  # the free cores, at most 2 (OMP_NUM_THREADS wins); see docs/guide/faq.md
     out = args.out or os.path.dirname(os.path.abspath(args.model))
     os.makedirs(out, exist_ok=True)
 

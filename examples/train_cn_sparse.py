@@ -22,13 +22,13 @@ import time
 from typing import Any
 
 import numpy as np
-import torch as th
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.callbacks import EpisodeMetricsCallback, episode_metric_means
+from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.enjoy import record_gif
 from sb3_saeir.evaluation import MultiAgentEvalCallback, RandomMultiAgentPolicy, evaluate_multiagent_policy
 
@@ -188,7 +188,7 @@ def main() -> None:
     parser.add_argument("--out", default="runs/quickstart", help="run folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar (e.g. in logs)")
     args = parser.parse_args()
-    th.set_num_threads(1)  # on small machines the default thread count makes SB3 2-15x slower
+    set_num_threads(None)  # the free cores, at most 2 (OMP_NUM_THREADS wins): more threads than free cores slow SB3 down
     os.makedirs(args.out, exist_ok=True)
     start = time.time()
 

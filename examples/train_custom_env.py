@@ -16,11 +16,11 @@ import functools
 from typing import ClassVar
 
 import numpy as np
-import torch as th
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 
@@ -106,7 +106,7 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    th.set_num_threads(1)
+    set_num_threads(None)  # the free cores, at most 2 (OMP_NUM_THREADS wins); see docs/guide/faq.md
 
     # A callable that returns a new ParallelEnv: one per game, wrapped by SuperSuit into one slot per agent.
     make_game = functools.partial(LineSpread, n_agents=args.n_agents)

@@ -15,7 +15,6 @@ import argparse
 import importlib.util
 import sys
 
-import torch as th
 from torch import nn
 
 INSTALL_HINT = """gfootball is not installed, so the football tasks are not available.
@@ -41,9 +40,10 @@ def main() -> None:
     if importlib.util.find_spec("gfootball") is None:
         print(INSTALL_HINT)
         sys.exit(0)
-    th.set_num_threads(1)
-
     from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
+    from sb3_saeir.common.utils import set_num_threads
+
+    set_num_threads(None)  # the free cores, at most 2 (OMP_NUM_THREADS wins); see docs/guide/faq.md
     from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
     env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed, num_cpus=args.num_cpus)

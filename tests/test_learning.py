@@ -5,7 +5,8 @@
   package defaults, seed 0; about 15 minutes on one core. The paper trains 20M env steps (60M agent-steps).
   The claim, as measured (docs/results.md): on mpe2's world without the collision penalty
   (``world="mpe2", collision_penalty=0``; the variant the earlier runs learned in), SAEIR_PPO's final-step coverage is
-  at least three times a random policy's and 0.05 above it (measured: 17.5% vs 1.8%, seed 0, about 16 minutes).
+  at least three times a random policy's and 0.05 above it (measured on 0.2.0a0: 16.2% vs 1.8%, seed 0, 745 s on
+  one core; 17.5% on 0.1.0a0).
   The task as defined (penalty 1) did not rise above random at this budget, so it is not claimed here; where it is
   learnable is the subject of the learning-evidence runs (docs/results.md).
 - Dense mpe2 ``simple_spread`` (a sanity check that the learner itself works): DENSE_BUDGET agent-steps, 16 games,

@@ -204,11 +204,7 @@ class MultiAgentVecEnv(VecEnv):
         self.metadata = dict(getattr(probe_env, "metadata", {}) or {})
         self._game_seed: int | None = None
         self._actions: np.ndarray | None = None
-        # Per-game episode accumulators (team return = per-step reward averaged over the game's agents).
-        self._episode_returns = np.zeros(self.n_games, dtype=np.float64)
-        self._episode_lengths = np.zeros(self.n_games, dtype=np.int64)
-        self._t_start = time.time()
-        self.episode_count = 0
+        self._init_episode_records()
 
     # ------------------------------------------------------------------ layout helpers
     def game_of(self, slot: int) -> int:
@@ -317,6 +313,13 @@ class MultiAgentVecEnv(VecEnv):
                 infos[slot]["TimeLimit.truncated"] = True
         self._record_episodes(rewards, dones, infos)
         return obs, rewards, dones, infos
+
+    def _init_episode_records(self) -> None:
+        """Per-game episode accumulators (team return = per-step reward averaged over the game's agents)."""
+        self._episode_returns = np.zeros(self.n_games, dtype=np.float64)
+        self._episode_lengths = np.zeros(self.n_games, dtype=np.int64)
+        self._t_start = time.time()
+        self.episode_count = 0
 
     def _record_episodes(self, rewards: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
         """Accumulate per-game statistics; at a game's end put one ``episode`` dict into its first agent's info."""

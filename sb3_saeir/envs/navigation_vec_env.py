@@ -14,7 +14,6 @@ game's end). The task is described in ``docs/tasks.md``.
 from __future__ import annotations
 
 import copy
-import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -148,10 +147,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
         self.metadata = dict(SparseCooperativeNavigation.metadata)
         self._game_seed: int | None = None
         self._actions: np.ndarray | None = None
-        self._episode_returns = np.zeros(self.n_games, dtype=np.float64)
-        self._episode_lengths = np.zeros(self.n_games, dtype=np.int64)
-        self._t_start = time.time()
-        self.episode_count = 0
+        self._init_episode_records()
         self.core.reset_games()
 
     # ------------------------------------------------------------------ seeding / reset
@@ -191,30 +187,17 @@ class NavigationVecEnv(MultiAgentVecEnv):
         rewards = np.repeat(result.rewards.astype(np.float32), N)  # (G,) -> (G * N,)
         dones = np.repeat(result.truncated, N)  # (G,) -> (G * N,)
         infos: list[dict[str, Any]] = [{} for _ in range(G * N)]
-        # (G * N,) -> (G, N): the team return of a game is its agents' mean reward, as MultiAgentVecEnv records it
-        self._episode_returns += rewards.reshape(G, N).mean(axis=1)
-        self._episode_lengths += 1
-        if result.truncated.any():
-            finished = np.flatnonzero(result.truncated)
-            terminal_obs = obs.copy()
-            for game in finished:
-                metrics = self.core.episode_metrics(int(game))
-                for slot in range(game * N, (game + 1) * N):
-                    infos[slot]["terminal_observation"] = terminal_obs[slot]
-                    infos[slot][EPISODE_METRICS_KEY] = dict(metrics)
-                    if self.mark_truncation:
-                        infos[slot]["TimeLimit.truncated"] = True
-                first = infos[game * N]
-                first["episode"] = {
-                    "r": float(self._episode_returns[game]),
-                    "l": int(self._episode_lengths[game]),
-                    "t": round(time.time() - self._t_start, 6),
-                    **metrics,
-                }
-                first["is_success"] = bool(metrics["success"])
-                self._episode_returns[game] = 0.0
-                self._episode_lengths[game] = 0
-                self.episode_count += 1
+        finished = np.flatnonzero(result.truncated)
+        terminal_obs = obs.copy() if len(finished) else obs
+        for game in finished:
+            metrics = self.core.episode_metrics(int(game))
+            for slot in range(game * N, (game + 1) * N):
+                infos[slot]["terminal_observation"] = terminal_obs[slot]
+                infos[slot][EPISODE_METRICS_KEY] = dict(metrics)
+                if self.mark_truncation:
+                    infos[slot]["TimeLimit.truncated"] = True
+        self._record_episodes(rewards, dones, infos)  # the per-game episode records, as for SuperSuit-backed games
+        if len(finished):
             self.core.reset_games(finished)
             # (G, N, obs_dim) -> (G * N, obs_dim): the first observations of the new episodes replace the last ones
             obs = self.core.observations().reshape(G * N, -1)

@@ -42,8 +42,8 @@ and prints "interrupted: re-run the same command to resume" (exit status 130).
 
 A failing run is reported in ``failures.txt`` and does not stop the others. ``--ray-address`` runs them on a Ray
 cluster instead of local processes (results gathered into the same folder; resuming from checkpoints needs a shared
-filesystem). ``--entropy-plot RUN_FOLDER`` draws the SAEIR bonus and the value-softmax entropy over training for one
-run.
+filesystem). ``--entropy-plot RUN_FOLDER`` draws the SAEIR bonus, its fire rate and the value-softmax entropy over training for
+one run (``system_entropy.png`` in the run's folder) and prints the fire rate and entropy per scale.
 """
 
 from __future__ import annotations
@@ -969,8 +969,45 @@ def numeric_series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], l
     return steps, values
 
 
-def plot_system_entropy(run: Path, path: Path) -> None:
-    """SAEIR bonus and value-softmax entropy per scale over training, from a run's ``progress.csv``."""
+def _scale_keys(rows: list[dict[str, Any]], prefix: str) -> list[str]:
+    """The per-scale keys ``<prefix><scale>`` of a run's ``progress.csv``, sorted."""
+    return sorted(key for key in rows[0] if key.startswith(prefix))
+
+
+def system_entropy_summary(rows: list[dict[str, Any]], last_fraction: float = 0.1) -> dict[str, dict[str, float]]:
+    """Per scale: the SAEIR bonus fire rate (fraction of steps where the bonus fired) averaged over all rollouts and over
+    the last ``last_fraction`` of them, and the value-softmax entropy of the first and the last rollout.
+
+    :param rows: a SAEIR run's ``progress.csv`` rows (:func:`read_rows`)
+    :param last_fraction: share of the rollouts, at the end of training, of the late fire rate
+    :return: ``{scale: {"fire_rate": ..., "fire_rate_late": ..., "entropy_first": ..., "entropy_last": ...}}``
+    """
+    if not rows or "rollout/intrinsic_reward_mean" not in rows[0]:
+        raise ValueError("the run's progress.csv has no SAEIR logs (rollout/intrinsic_reward_mean).")
+    summary: dict[str, dict[str, float]] = {}
+    for key in _scale_keys(rows, "rollout/intrinsic_fire_rate_"):
+        scale = key[len("rollout/intrinsic_fire_rate_") :]
+        _, fire = numeric_series(rows, key)
+        _, entropy = numeric_series(rows, f"rollout/value_entropy_{scale}")
+        if not fire or not entropy:
+            continue
+        late = fire[-max(1, round(len(fire) * last_fraction)) :]
+        summary[scale] = {
+            "fire_rate": float(np.mean(fire)),
+            "fire_rate_late": float(np.mean(late)),
+            "entropy_first": entropy[0],
+            "entropy_last": entropy[-1],
+        }
+    return summary
+
+
+def plot_system_entropy(run: Path, path: Path) -> dict[str, dict[str, float]]:
+    """SAEIR bonus, its fire rate and the value-softmax entropy per scale over training, from a run's ``progress.csv``.
+
+    :param run: the run's folder
+    :param path: the figure's file
+    :return: :func:`system_entropy_summary` of the run
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -979,14 +1016,21 @@ def plot_system_entropy(run: Path, path: Path) -> None:
     rows = read_rows(run / "progress.csv")
     if not rows or "rollout/intrinsic_reward_mean" not in rows[0]:
         raise ValueError(f"{run / 'progress.csv'} has no SAEIR logs (rollout/intrinsic_reward_mean).")
-    figure, (top, bottom) = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
-    top.plot(*numeric_series(rows, "rollout/intrinsic_reward_mean"), label="all scales")
-    for key in sorted(k for k in rows[0] if k.startswith("rollout/intrinsic_reward_mean_")):
-        top.plot(*numeric_series(rows, key), label=key.rsplit("_", 1)[1], alpha=0.7)
+    summary = system_entropy_summary(rows)
+    figure, (top, middle, bottom) = plt.subplots(3, 1, figsize=(6, 7), sharex=True)
+    scales = [key.rsplit("_", 1)[1] for key in _scale_keys(rows, "rollout/value_entropy_")]
+    colors = {scale: f"C{i}" for i, scale in enumerate(scales)}  # one colour per scale in every panel
+    top.plot(*numeric_series(rows, "rollout/intrinsic_reward_mean"), label="all scales", color="black", alpha=0.6)
+    for scale in scales:
+        top.plot(*numeric_series(rows, f"rollout/intrinsic_reward_mean_{scale}"), label=scale, color=colors[scale])
     top.set_ylabel("SAEIR bonus (unscaled)")
     top.legend(fontsize=8)
-    for key in sorted(k for k in rows[0] if k.startswith("rollout/value_entropy_")):
-        bottom.plot(*numeric_series(rows, key), label=key.rsplit("_", 1)[1])
+    for scale in scales:
+        middle.plot(*numeric_series(rows, f"rollout/intrinsic_fire_rate_{scale}"), label=scale, color=colors[scale])
+    middle.set_ylabel("bonus fire rate")
+    middle.legend(fontsize=8)
+    for scale in scales:
+        bottom.plot(*numeric_series(rows, f"rollout/value_entropy_{scale}"), label=scale, color=colors[scale])
     bottom.set_ylabel("value-softmax entropy")
     bottom.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
     bottom.set_xlabel("agent-steps")
@@ -994,6 +1038,7 @@ def plot_system_entropy(run: Path, path: Path) -> None:
     figure.tight_layout()
     figure.savefig(path, dpi=120)
     plt.close(figure)
+    return summary
 
 
 def report(out: Path, specs: list[RunSpec], use_rliable: bool = False) -> list[dict[str, Any]]:
@@ -1010,11 +1055,41 @@ def report(out: Path, specs: list[RunSpec], use_rliable: bool = False) -> list[d
             (out / name).unlink(missing_ok=True)
         print("no evaluation rows yet")
         return rows
-    atomic_write_text(out / "table.md", table_markdown(rows))
+    unfinished = unfinished_runs(out, specs, rows)
+    final = [row for row in rows if (row["algo"], row["task"], int(row["seed"])) not in unfinished]
+    note = ""
+    if unfinished:  # their last evaluation is not at the budget: curves only, never a final value
+        listed = ", ".join(f"{algo}/{task}_s{seed} at {steps:,}" for (algo, task, seed), steps in unfinished.items())
+        note = f"\nNot finished, left out of this table (curves only): {listed} agent-steps.\n"
+        print(f"table.md and aggregate.md count finished runs only; not finished: {listed} agent-steps")
+    if final:
+        atomic_write_text(out / "table.md", table_markdown(final) + note)
+        if use_rliable:
+            atomic_write_text(out / "aggregate.md", rliable_markdown(final) + note)
+    else:
+        for name in ("table.md", "aggregate.md"):
+            (out / name).unlink(missing_ok=True)
     plot_curves(rows, out / "curves.png")
-    if use_rliable:
-        atomic_write_text(out / "aggregate.md", rliable_markdown(rows))
     return rows
+
+
+def unfinished_runs(out: Path, specs: list[RunSpec], rows: list[dict[str, Any]]) -> dict[tuple[str, str, int], int]:
+    """The runs of ``specs`` with evaluation rows but no ``done.json`` (running, stopped or failed), with the
+    agent-steps of their last evaluation.
+
+    :param out: the benchmark folder
+    :param specs: the command's runs
+    :param rows: their evaluation rows (:func:`collect`)
+    """
+    reached: dict[tuple[str, str, int], int] = {}
+    for row in rows:
+        key = (row["algo"], row["task"], int(row["seed"]))
+        reached[key] = max(reached.get(key, 0), int(row["timesteps"]))
+    return {
+        (spec.algo, spec.task, spec.seed): reached[(spec.algo, spec.task, spec.seed)]
+        for spec in specs
+        if (spec.algo, spec.task, spec.seed) in reached and not (run_folder(out, spec) / "done.json").is_file()
+    }
 
 
 def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only: bool = False) -> str:
@@ -1056,7 +1131,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--rliable", action="store_true", help="also write aggregate.md (IQM, bootstrap CIs)")
     parser.add_argument("--report-only", action="store_true", help="rebuild runs.csv/table/curves without training")
-    parser.add_argument("--entropy-plot", default=None, help="RUN_FOLDER: plot the SAEIR bonus and value entropy")
+    parser.add_argument("--entropy-plot", default=None, help="RUN_FOLDER: plot the SAEIR bonus, fire rate and value entropy")
     return parser
 
 
@@ -1138,8 +1213,15 @@ def _main(args: argparse.Namespace) -> int:
         print(f"sb3_saeir.benchmark: error: {missing}", file=sys.stderr)
         return 2
     if args.entropy_plot:
-        plot_system_entropy(Path(args.entropy_plot), Path(args.entropy_plot) / "system_entropy.png")
+        summary = plot_system_entropy(Path(args.entropy_plot), Path(args.entropy_plot) / "system_entropy.png")
         print(f"wrote {Path(args.entropy_plot) / 'system_entropy.png'}")
+        print("| scale | fire rate (all rollouts) | fire rate (last 10%) | value entropy (first -> last rollout) |")
+        print("|---|---|---|---|")
+        for scale, figures in summary.items():
+            print(
+                f"| {scale} | {figures['fire_rate']:.2e} | {figures['fire_rate_late']:.2e} "
+                f"| {figures['entropy_first']:.3f} -> {figures['entropy_last']:.3f} |"
+            )
         return 0
     problem = _check_arguments(args)
     if problem is not None:

@@ -72,6 +72,26 @@ def test_run_folders_hold_their_spec(finished):
     assert done["segments"] == 1 and done["timesteps"] == 240 and done["wall_s"] > 0
 
 
+def test_report_leaves_unfinished_runs_out_of_the_table(finished, tmp_path, capsys):
+    """A run without done.json (running, stopped, failed) is in runs.csv and the curves, never a final value."""
+    out, argv = finished
+    copy = tmp_path / "bench"
+    shutil.copytree(out, copy)
+    (copy / "runs" / "mappo" / "cn-sparse-n3_s2" / "done.json").unlink()
+    assert main([*argv, "--out", str(copy), "--rliable", "--report-only"]) == 0
+    assert "not finished: mappo/cn-sparse-n3_s2 at 240 agent-steps" in capsys.readouterr().out
+    assert {(r["algo"], r["seed"]) for r in read_csv(copy / "runs.csv")} >= {("mappo", "2")}
+    table = (copy / "table.md").read_text()
+    assert "| mappo |" in table and "(n=1)" in table and "| saeir_ppo |" in table and "(n=2)" in table
+    assert "Not finished, left out of this table (curves only): mappo/cn-sparse-n3_s2 at 240 agent-steps." in table
+    assert "mappo/cn-sparse-n3_s2" in (copy / "aggregate.md").read_text()
+    for algo in ("mappo", "saeir_ppo"):  # nothing finished: no table at all
+        for seed in (1, 2):
+            (copy / "runs" / algo / f"cn-sparse-n3_s{seed}" / "done.json").unlink(missing_ok=True)
+    assert main([*argv, "--out", str(copy), "--report-only"]) == 0
+    assert not (copy / "table.md").exists() and (copy / "curves.png").is_file()
+
+
 def test_rerun_skips_finished_runs(finished, capsys):
     out, argv = finished
     before = (out / "runs.csv").read_text()
@@ -127,13 +147,46 @@ def test_unknown_method_or_task(tmp_path, capsys):
     assert "unknown methods ['qmix']" in capsys.readouterr().err
 
 
-def test_entropy_plot(finished):
+def test_entropy_plot(finished, capsys):
     out, _ = finished
     run = out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1"
     assert main(["--entropy-plot", str(run)]) == 0
     assert (run / "system_entropy.png").read_bytes()[:4] == b"\x89PNG"
+    printed = capsys.readouterr().out
+    assert all(f"| {scale} |" in printed for scale in ("team", "group", "individual"))
     with pytest.raises(ValueError, match="no SAEIR logs"):
         benchmark.plot_system_entropy(out / "runs" / "mappo" / "cn-sparse-n3_s1", out / "x.png")
+
+
+def test_system_entropy_summary_worked_example():
+    """Ten rollouts of one scale plus an evaluation row without the keys: mean fire rate 0.06, last tenth 0.5."""
+    fire = [0.1, 0, 0, 0, 0, 0, 0, 0, 0, 0.5]
+    entropy = [3.0, 3.1, 3.1, 3.1, 3.1, 3.1, 3.1, 3.1, 3.1, 3.2]
+    rows: list[dict] = [
+        {
+            "time/total_timesteps": 100 * (i + 1),
+            "rollout/intrinsic_reward_mean": 0.0,
+            "rollout/intrinsic_fire_rate_team": f,
+            "rollout/value_entropy_team": e,
+        }
+        for i, (f, e) in enumerate(zip(fire, entropy))
+    ]
+    rows.insert(
+        5,
+        {
+            "time/total_timesteps": 550,
+            "rollout/intrinsic_reward_mean": "",
+            "rollout/intrinsic_fire_rate_team": "",
+            "rollout/value_entropy_team": "",
+        },
+    )
+    summary = benchmark.system_entropy_summary(rows)
+    assert summary["team"] == pytest.approx(
+        {"fire_rate": 0.06, "fire_rate_late": 0.5, "entropy_first": 3.0, "entropy_last": 3.2}
+    )
+    assert benchmark.system_entropy_summary(rows, last_fraction=0.2)["team"]["fire_rate_late"] == pytest.approx(0.25)
+    with pytest.raises(ValueError, match="no SAEIR logs"):
+        benchmark.system_entropy_summary([{"time/total_timesteps": 1}])
 
 
 def test_numeric_series_skips_rows_without_the_key(finished):

@@ -937,21 +937,45 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
     plt.close(figure)
 
 
-def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000) -> str:
-    """IQM of the final main metric with 95% stratified-bootstrap confidence intervals (rliable)."""
+def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_seed: int = 0) -> str:
+    """IQM of the final main metric with 95% stratified-bootstrap confidence intervals (rliable).
+
+    :param rows: the evaluation rows of ``runs.csv`` (:func:`collect`), finished runs only
+    :param reps: bootstrap resamples per interval
+    :param bootstrap_seed: seed of the resampling, so that reporting the same runs twice writes the same intervals
+    :return: the Markdown table of ``aggregate.md``
+    """
     from rliable import library as rly
     from rliable import metrics
 
     finals = final_rows(rows)
     lines = ["| Task | Method | IQM | 95% CI |", "|---|---|---|---|"]
-    for task in sorted({task for _, task in finals}):
-        key, title, scale = TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
-        scores = {algo: np.array([[scale * row[key]] for row in runs]) for (algo, t), runs in finals.items() if t == task}
-        estimates, intervals = rly.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps)
-        for algo in sorted(scores):
-            low, high = intervals[algo][:, 0]
-            lines.append(f"| {task} | {algo} | {estimates[algo][0]:.2f} {title} | [{low:.2f}, {high:.2f}] |")
+    # rliable's StratifiedBootstrap draws its resamples from NumPy's global generator (it ignores random_state): seed
+    # that one for the call and give the caller's state back afterwards.
+    global_state = np.random.get_state()
+    np.random.seed(bootstrap_seed)
+    try:
+        for task in sorted({task for _, task in finals}):
+            key, title, scale = TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
+            scores = {algo: np.array([[scale * row[key]] for row in runs]) for (algo, t), runs in finals.items() if t == task}
+            estimates, intervals = rly.get_interval_estimates(
+                scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps
+            )
+            lines += _aggregate_lines(task, title, scores, estimates, intervals)
+    finally:
+        np.random.set_state(global_state)
     return "\n".join(lines) + "\n"
+
+
+def _aggregate_lines(
+    task: str, title: str, scores: dict[str, np.ndarray], estimates: dict[str, np.ndarray], intervals: dict[str, np.ndarray]
+) -> list[str]:
+    """The rows of ``aggregate.md`` for one task: IQM and its interval per method."""
+    lines = []
+    for algo in sorted(scores):
+        low, high = intervals[algo][:, 0]  # intervals[algo]: (2 bounds, 1 metric)
+        lines.append(f"| {task} | {algo} | {estimates[algo][0]:.2f} {title} | [{low:.2f}, {high:.2f}] |")
+    return lines
 
 
 def numeric_series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], list[float]]:
@@ -969,9 +993,9 @@ def numeric_series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], l
     return steps, values
 
 
-def _scale_keys(rows: list[dict[str, Any]], prefix: str) -> list[str]:
-    """The per-scale keys ``<prefix><scale>`` of a run's ``progress.csv``, sorted."""
-    return sorted(key for key in rows[0] if key.startswith(prefix))
+def _scales(rows: list[dict[str, Any]], prefix: str) -> list[str]:
+    """The scale names ``<scale>`` of the per-scale keys ``<prefix><scale>`` of a run's ``progress.csv``, sorted."""
+    return sorted(key[len(prefix) :] for key in rows[0] if key.startswith(prefix))
 
 
 def system_entropy_summary(rows: list[dict[str, Any]], last_fraction: float = 0.1) -> dict[str, dict[str, float]]:
@@ -985,9 +1009,8 @@ def system_entropy_summary(rows: list[dict[str, Any]], last_fraction: float = 0.
     if not rows or "rollout/intrinsic_reward_mean" not in rows[0]:
         raise ValueError("the run's progress.csv has no SAEIR logs (rollout/intrinsic_reward_mean).")
     summary: dict[str, dict[str, float]] = {}
-    for key in _scale_keys(rows, "rollout/intrinsic_fire_rate_"):
-        scale = key[len("rollout/intrinsic_fire_rate_") :]
-        _, fire = numeric_series(rows, key)
+    for scale in _scales(rows, "rollout/intrinsic_fire_rate_"):
+        _, fire = numeric_series(rows, f"rollout/intrinsic_fire_rate_{scale}")
         _, entropy = numeric_series(rows, f"rollout/value_entropy_{scale}")
         if not fire or not entropy:
             continue
@@ -1014,11 +1037,12 @@ def plot_system_entropy(run: Path, path: Path) -> dict[str, dict[str, float]]:
     import matplotlib.pyplot as plt
 
     rows = read_rows(run / "progress.csv")
-    if not rows or "rollout/intrinsic_reward_mean" not in rows[0]:
-        raise ValueError(f"{run / 'progress.csv'} has no SAEIR logs (rollout/intrinsic_reward_mean).")
-    summary = system_entropy_summary(rows)
+    try:
+        summary = system_entropy_summary(rows)
+    except ValueError as error:
+        raise ValueError(f"{run / 'progress.csv'}: {error}") from error
     figure, (top, middle, bottom) = plt.subplots(3, 1, figsize=(6, 7), sharex=True)
-    scales = [key.rsplit("_", 1)[1] for key in _scale_keys(rows, "rollout/value_entropy_")]
+    scales = _scales(rows, "rollout/value_entropy_")
     colors = {scale: f"C{i}" for i, scale in enumerate(scales)}  # one colour per scale in every panel
     top.plot(*numeric_series(rows, "rollout/intrinsic_reward_mean"), label="all scales", color="black", alpha=0.6)
     for scale in scales:

@@ -16,7 +16,10 @@ before it starts, so every evaluation of a run plays the same ``--eval-episodes`
 - ``runs.csv``: every evaluation row of the command's runs (algo, task, seed, agent-steps, env steps, metrics);
 - ``table.md``: mean ± std over seeds at the final evaluation, best method in bold (the paper's Table 1 layout);
 - ``curves.png``: one panel per task, mean line and std band per method, x axis in env steps (game steps);
-- ``aggregate.md`` with ``--rliable``: IQM and 95% stratified-bootstrap confidence intervals of the final main metric.
+- ``aggregate.md`` with ``--rliable``: IQM and 95% stratified-bootstrap confidence intervals of the final main metric
+  (the bootstrap is seeded: reporting the same runs again writes the same intervals), then every pair of methods: the
+  difference of the means, how often one ends above the other over the pairs of seeds, and the two-sided Mann-Whitney
+  U test's p-value, to tell which differences are larger than the seed spread.
 
 **Settings are never mixed.** Before any training the command compares every planned run with the ``spec.json`` of
 its folder; when one differs (another ``-n``, ``-params``, ``--n-games``, ``--eval-freq``, ``--eval-episodes``, or
@@ -51,7 +54,9 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import itertools
 import json
+import math
 import os
 import random
 import signal
@@ -967,6 +972,59 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_see
     return "\n".join(lines) + "\n"
 
 
+def mann_whitney(first: list[float], second: list[float], max_splits: int = 200_000) -> tuple[float, float]:
+    """The Mann-Whitney U statistic of ``first`` against ``second`` (pairs where ``first`` is above, ties counting half)
+    and its two-sided p-value: exact, from every split of the pooled values into two groups of these sizes (mid-ranks,
+    so ties are handled; the share of splits whose U is at least as far from its mean as the observed one), or SciPy's
+    normal approximation when there are more than ``max_splits`` splits.
+
+    :param first: final values of the first method, one per seed
+    :param second: final values of the second method, one per seed
+    :param max_splits: largest number of splits enumerated for the exact p-value
+    :return: ``(U, p)``
+    """
+    from scipy.stats import mannwhitneyu, rankdata
+
+    n_first, n_second = len(first), len(second)
+    ranks = rankdata(np.concatenate([first, second]))  # (n_first + n_second,) mid-ranks of the pooled values
+    offset = n_first * (n_first + 1) / 2
+    statistic = float(ranks[:n_first].sum() - offset)
+    if math.comb(n_first + n_second, n_first) > max_splits:
+        return statistic, float(mannwhitneyu(first, second, alternative="two-sided", method="asymptotic").pvalue)
+    mean = n_first * n_second / 2
+    split_statistics = np.array(
+        [ranks[list(split)].sum() - offset for split in itertools.combinations(range(n_first + n_second), n_first)]
+    )
+    extreme = np.abs(split_statistics - mean) >= abs(statistic - mean) - 1e-9
+    return statistic, float(extreme.mean())
+
+
+def pairwise_markdown(rows: list[dict[str, Any]]) -> str:
+    """Which differences between methods are larger than the seed spread: for every pair of methods on a task, the
+    difference of the mean final main metric, the share of (seed, seed) pairs where the first method ends above the
+    second (ties count half) and the two-sided Mann-Whitney U test's p-value (:func:`mann_whitney`).
+
+    :param rows: the evaluation rows of ``runs.csv`` (:func:`collect`), finished runs only
+    :return: the Markdown table appended to ``aggregate.md``
+    """
+    finals = final_rows(rows)
+    lines = [
+        "| Task | Method A | Method B | mean A - mean B | A above B (seed pairs) | Mann-Whitney p (two-sided) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for task in sorted({task for _, task in finals}):
+        key, title, scale = TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
+        scores = {algo: [scale * row[key] for row in runs] for (algo, t), runs in finals.items() if t == task}
+        for first, second in itertools.combinations(sorted(scores), 2):
+            a, b = scores[first], scores[second]
+            statistic, p_value = mann_whitney(a, b)
+            lines.append(
+                f"| {task} | {first} (n={len(a)}) | {second} (n={len(b)}) | {np.mean(a) - np.mean(b):+.2f} {title} "
+                f"| {statistic / (len(a) * len(b)):.0%} | {p_value:.3f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
 def _aggregate_lines(
     task: str, title: str, scores: dict[str, np.ndarray], estimates: dict[str, np.ndarray], intervals: dict[str, np.ndarray]
 ) -> list[str]:
@@ -1089,7 +1147,7 @@ def report(out: Path, specs: list[RunSpec], use_rliable: bool = False) -> list[d
     if final:
         atomic_write_text(out / "table.md", table_markdown(final) + note)
         if use_rliable:
-            atomic_write_text(out / "aggregate.md", rliable_markdown(final) + note)
+            atomic_write_text(out / "aggregate.md", rliable_markdown(final) + "\n" + pairwise_markdown(final) + note)
     else:
         for name in ("table.md", "aggregate.md"):
             (out / name).unlink(missing_ok=True)
@@ -1153,7 +1211,9 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="move runs made with other settings aside (<folder>.replaced-<UTC time>) and train them again",
     )
-    parser.add_argument("--rliable", action="store_true", help="also write aggregate.md (IQM, bootstrap CIs)")
+    parser.add_argument(
+        "--rliable", action="store_true", help="also write aggregate.md (IQM, bootstrap CIs, pairwise Mann-Whitney tests)"
+    )
     parser.add_argument("--report-only", action="store_true", help="rebuild runs.csv/table/curves without training")
     parser.add_argument("--entropy-plot", default=None, help="RUN_FOLDER: plot the SAEIR bonus, fire rate and value entropy")
     return parser
@@ -1219,7 +1279,7 @@ def _missing_extra(args: argparse.Namespace) -> str | None:
     """Check, before any training, that the optional packages this command needs are installed."""
     needed = [("matplotlib", "plots", "the benchmark's curves.png")]
     if args.rliable:
-        needed.append(("rliable", "plots", "--rliable"))
+        needed += [("rliable", "plots", "--rliable"), ("scipy", "plots", "--rliable")]
     if args.ray_address is not None:
         needed.append(("ray", "ray", "--ray-address"))
     for module, extra, purpose in needed:

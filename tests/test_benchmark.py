@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import mannwhitneyu
 
 from sb3_saeir import benchmark
 from sb3_saeir.benchmark import RunSpec, execute_run, main, parse_seeds, run_folder
@@ -53,7 +54,8 @@ def test_csv_table_figure(finished):
     assert table.count("\n") == 4 and "| saeir_ppo |" in table and "(n=2)" in table and "**" in table
     assert "cn-sparse-n3 Coverage %" in table
     assert (out / "curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "IQM" in (out / "aggregate.md").read_text()
+    aggregate = (out / "aggregate.md").read_text()
+    assert "IQM" in aggregate and "| cn-sparse-n3 | mappo (n=2) | saeir_ppo (n=2) |" in aggregate
 
 
 def test_run_folders_hold_their_spec(finished):
@@ -171,6 +173,36 @@ def test_aggregate_intervals_repeat():
     assert np.random.randint(10**9) == np.random.RandomState(123).randint(10**9)  # the caller's global state is kept
     assert first == benchmark.rliable_markdown(rows, reps=500)
     assert "| cn-sparse-n3 | mappo | 5.50 Coverage % |" in first
+
+
+def test_pairwise_differences_worked_examples():
+    """Five seeds each, every A seed above every B seed (a tie inside A): A above B in 100% of the seed pairs, exact
+    two-sided p = 2 / C(10, 5) = 2 / 252. Interleaved 1, 3, 5 against 2, 4, 6: A above B in 3 of 9 pairs, and
+    P(U <= 3) = 7 / 20 under the null (U's counts for 3 vs 3: 1, 1, 2, 3, 3, 3, 3, 2, 1, 1), so p = 0.7."""
+
+    def rows(algo, values):
+        return [
+            {"algo": algo, "task": "cn-sparse-n3", "seed": seed, "timesteps": 100, "coverage_rate_mean": value}
+            for seed, value in enumerate(values, 1)
+        ]
+
+    table = benchmark.pairwise_markdown(
+        rows("mappo", [0.30, 0.12, 0.10, 0.09, 0.12]) + rows("saeir_ppo", [0.07, 0.04, 0.08, 0.03, 0.06])
+    )
+    assert f"| cn-sparse-n3 | mappo (n=5) | saeir_ppo (n=5) | +9.00 Coverage % | 100% | {2 / 252:.3f} |" in table
+    table = benchmark.pairwise_markdown(rows("a", [0.01, 0.03, 0.05]) + rows("b", [0.02, 0.04, 0.06]))
+    assert "| a (n=3) | b (n=3) | -1.00 Coverage % | 33% | 0.700 |" in table
+
+
+def test_mann_whitney_with_ties_worked_example():
+    """[1, 2] against [2, 3]: mid-ranks 1, 2.5 | 2.5, 4, U = 0.5 (the tie counts half); the six splits of the pooled
+    ranks give U = 0.5, 0.5, 2, 2, 3.5, 3.5, four of them at least 1.5 from the mean 2: p = 4 / 6. Beyond max_splits
+    the p-value is SciPy's normal approximation."""
+    assert benchmark.mann_whitney([1, 2], [2, 3]) == pytest.approx((0.5, 4 / 6))
+    assert benchmark.mann_whitney([1, 2, 3], [4, 5, 6])[1] == pytest.approx(2 / 20)
+    first, second = list(range(10)), list(range(5, 15))
+    expected = mannwhitneyu(first, second, alternative="two-sided", method="asymptotic").pvalue
+    assert benchmark.mann_whitney(first, second, max_splits=100)[1] == pytest.approx(expected)
 
 
 def test_system_entropy_summary_worked_example():

@@ -873,6 +873,24 @@ def final_rows(rows: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[st
     return grouped
 
 
+def main_metric(task: str) -> tuple[str, str, float]:
+    """``(key, title, scale)`` of the task's main metric: the first column of :data:`TABLE_COLUMNS` for its family."""
+    return TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
+
+
+def final_scores(finals: dict[tuple[str, str], list[dict[str, Any]]]) -> dict[str, tuple[str, dict[str, list[float]]]]:
+    """Per task: the main metric's title and, per method, its scaled final values, one per seed.
+
+    :param finals: :func:`final_rows`
+    :return: ``{task: (title, {algo: values})}``
+    """
+    scores: dict[str, tuple[str, dict[str, list[float]]]] = {}
+    for task in sorted({task for _, task in finals}):
+        key, title, scale = main_metric(task)
+        scores[task] = (title, {algo: [scale * row[key] for row in runs] for (algo, t), runs in finals.items() if t == task})
+    return scores
+
+
 def table_markdown(rows: list[dict[str, Any]]) -> str:
     """The paper's Table 1 layout: methods as rows, (task, metric) as columns, mean ± std over seeds, best in bold."""
     finals = final_rows(rows)
@@ -920,7 +938,7 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
     tasks = sorted({row["task"] for row in rows})
     figure, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
     for axis, task in zip(axes[0], tasks):
-        key, title, scale = TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
+        key, title, scale = main_metric(task)
         for algo in sorted({row["algo"] for row in rows if row["task"] == task}):
             by_step: dict[int, list[float]] = {}
             for row in rows:
@@ -953,16 +971,14 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_see
     from rliable import library as rly
     from rliable import metrics
 
-    finals = final_rows(rows)
     lines = ["| Task | Method | IQM | 95% CI |", "|---|---|---|---|"]
     # rliable's StratifiedBootstrap draws its resamples from NumPy's global generator (it ignores random_state): seed
     # that one for the call and give the caller's state back afterwards.
     global_state = np.random.get_state()
     np.random.seed(bootstrap_seed)
     try:
-        for task in sorted({task for _, task in finals}):
-            key, title, scale = TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
-            scores = {algo: np.array([[scale * row[key]] for row in runs]) for (algo, t), runs in finals.items() if t == task}
+        for task, (title, values) in final_scores(final_rows(rows)).items():
+            scores = {algo: np.array(seeds)[:, None] for algo, seeds in values.items()}  # (n_seeds, 1 task) per method
             estimates, intervals = rly.get_interval_estimates(
                 scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps
             )
@@ -1007,14 +1023,11 @@ def pairwise_markdown(rows: list[dict[str, Any]]) -> str:
     :param rows: the evaluation rows of ``runs.csv`` (:func:`collect`), finished runs only
     :return: the Markdown table appended to ``aggregate.md``
     """
-    finals = final_rows(rows)
     lines = [
         "| Task | Method A | Method B | mean A - mean B | A above B (seed pairs) | Mann-Whitney p (two-sided) |",
         "|---|---|---|---|---|---|",
     ]
-    for task in sorted({task for _, task in finals}):
-        key, title, scale = TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
-        scores = {algo: [scale * row[key] for row in runs] for (algo, t), runs in finals.items() if t == task}
+    for task, (title, scores) in final_scores(final_rows(rows)).items():
         for first, second in itertools.combinations(sorted(scores), 2):
             a, b = scores[first], scores[second]
             statistic, p_value = mann_whitney(a, b)

@@ -12,7 +12,8 @@ before it starts, so every evaluation of a run plays the same ``--eval-episodes`
   eval_freq, eval_episodes, params, the config entry it trains with, the package version), ``evaluations.csv`` (one
   row per evaluation), ``progress.csv`` (SB3 logger, continued over resumes), ``checkpoint.zip`` (latest, for
   resuming), ``segments.json`` (wall time of each process that worked on the run), ``resume.log`` (what each resume
-  did), ``done.json`` (when finished: total wall time over the segments, agent-steps);
+  did), ``done.json`` and ``model.zip`` (when finished: total wall time over the segments, agent-steps; the final
+  model, for ``enjoy`` or ``benchmarks/bonus_readings.py``);
 - ``runs.csv``: every evaluation row of the command's runs (algo, task, seed, agent-steps, env steps, metrics);
 - ``table.md``: mean ± std over seeds at the final evaluation, best method in bold (the paper's Table 1 layout);
 - ``curves.png``: one panel per task, mean line and std band per method, x axis in env steps (game steps);
@@ -89,6 +90,7 @@ INTERRUPTED = "interrupted: re-run the same command to resume"
 # Files of a run folder.
 SPEC_FILE = "spec.json"
 CHECKPOINT_FILE = "checkpoint.zip"
+MODEL_FILE = "model.zip"
 # The entry of checkpoint.zip that holds the resume state (SB3's load ignores it).
 RESUME_ENTRY = "resume_state.pkl"
 RESUME_FORMAT = 1
@@ -727,7 +729,7 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
         evaluator.init_callback(model)
         evaluator.evaluate()  # final evaluation
     experiment.close()
-    _finish(path, clock, model.num_timesteps)
+    _finish(path, clock, model)
     return {"spec": asdict(spec), "status": "done", "rows": rows, "wall_s": clock.total_s}
 
 
@@ -751,8 +753,13 @@ def _split_rows(
     return rows, lost
 
 
-def _finish(path: Path, clock: SegmentClock, timesteps: int) -> None:
-    """Write ``done.json`` (total wall time over the segments) and remove the checkpoint."""
+def _finish(path: Path, clock: SegmentClock, model: Any) -> None:
+    """Save the final model (``model.zip``, atomically), write ``done.json`` (total wall time over the segments) and
+    remove the checkpoint."""
+    timesteps = model.num_timesteps
+    temp = path / f".{Path(MODEL_FILE).stem}.tmp.zip"
+    model.save(temp)
+    os.replace(temp, path / MODEL_FILE)
     clock.tick(timesteps)
     summary = {"wall_s": round(clock.total_s, 1), "segments": len(clock.segments), "timesteps": timesteps}
     atomic_write_text(path / "done.json", json.dumps(summary))

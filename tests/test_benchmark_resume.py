@@ -16,6 +16,7 @@ import pytest
 
 from sb3_saeir import benchmark, make_multiagent_vec_env
 from sb3_saeir.benchmark import INTERRUPTED, BenchmarkEvalCallback, RunSpec, execute_run, main, run_folder
+from sb3_saeir.config import ALGOS as ALGO_CLASSES
 
 ALGOS = ["mappo", "saeir_ppo", "rnd"]
 # 2 games x 3 agents: 6 agent-steps per vec step, 60 per rollout; evaluations at the first step >= k * 250
@@ -123,6 +124,19 @@ def test_wall_time_sums_the_segments(runs):
         assert segments[0]["resumed_at"] == 0 and segments[-1]["reached"] == 900
         assert all(segment["wall_s"] > 0 for segment in segments[1:])
         assert not (folder / "checkpoint.zip").exists()
+
+
+def test_final_model_is_saved_and_equals_the_uninterrupted_one(runs):
+    """``model.zip`` of a finished run loads, has trained the whole budget, and a killed-and-resumed run's equals the
+    uninterrupted run's parameter for parameter."""
+    reference, resumed, _ = runs
+    for algo in ALGOS:
+        models = [ALGO_CLASSES[algo].load(folder_of(out, algo) / "model.zip", device="cpu") for out in (reference, resumed)]
+        assert all(model.num_timesteps == 900 for model in models)
+        expected, actual = (model.policy.state_dict() for model in models)
+        assert expected.keys() == actual.keys()
+        for key in expected:
+            np.testing.assert_array_equal(actual[key].numpy(), expected[key].numpy(), err_msg=f"{algo}: {key}")
 
 
 def test_evaluations_stay_on_the_grid(runs):

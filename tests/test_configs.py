@@ -59,10 +59,18 @@ def test_missing_entry_and_unknown_algo():
         load_hyperparams("qmix", "cn-sparse-n3")
 
 
-@pytest.mark.parametrize("value", ["dict(variant='paper')", {"variant": "paper"}])
-def test_intrinsic_kwargs_string_or_dict(value):
+@pytest.mark.parametrize(
+    "value, variant",
+    [
+        ("dict(variant='paper')", "paper"),
+        ({"variant": "paper"}, "paper"),
+        ("dict(variant='supplement')", "supplement"),
+        ({"variant": "supplement"}, "supplement"),
+    ],
+)
+def test_intrinsic_kwargs_string_or_dict(value, variant):
     """``-params "intrinsic_kwargs:dict(variant='paper')"`` is evaluated like rl-zoo's ``policy_kwargs`` strings."""
     params = {**load_hyperparams("saeir_ppo", "cn-sparse-n3"), "intrinsic_kwargs": value}
     model, env, _, _ = build_model("saeir_ppo", "cn-sparse-n3", params, n_games=2, seed=0)
-    assert model.intrinsic_kwargs == {"variant": "paper"}
+    assert model.intrinsic_kwargs == {"variant": variant}
     env.close()

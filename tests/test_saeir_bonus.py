@@ -128,7 +128,7 @@ def _random_starts(rng: np.random.Generator, n_steps: int, n_envs: int) -> np.nd
     return starts
 
 
-@pytest.mark.parametrize("variant", ["code", "paper"])
+@pytest.mark.parametrize("variant", ["code", "paper", "supplement"])
 @pytest.mark.parametrize("with_last_values", [False, True])
 def test_episode_starts_equal_separate_segments(random_values, variant, with_last_values):
     rng = np.random.default_rng(2)
@@ -176,7 +176,8 @@ def test_numerical_stability_large_values(scale):
     with np.errstate(over="raise", invalid="raise", divide="raise"):  # underflow to 0 is benign
         bonus = saeir_bonus(values)
         paper = saeir_bonus(values, variant="paper", last_values=values[-1])
-    assert np.all(np.isfinite(bonus)) and np.all(np.isfinite(paper))
+        supplement = saeir_bonus(values, variant="supplement", last_values=values[-1])
+    assert np.all(np.isfinite(bonus)) and np.all(np.isfinite(paper)) and np.all(np.isfinite(supplement))
     expected = _apply_1d(_shifted_code_reference_1d, values)
     clear = ~np.isnan(expected)
     assert clear.mean() > 0.3 and np.count_nonzero(expected[clear]) > 0
@@ -186,7 +187,7 @@ def test_numerical_stability_large_values(scale):
     assert np.all(bonus[~clear] == 0.0)
 
 
-@pytest.mark.parametrize("variant", ["code", "paper"])
+@pytest.mark.parametrize("variant", ["code", "paper", "supplement"])
 def test_shift_invariance(random_values, variant):
     base = saeir_bonus(random_values, variant=variant, last_values=random_values[0])
     shifted = saeir_bonus(random_values + 900.0, variant=variant, last_values=random_values[0] + 900.0)
@@ -212,3 +213,98 @@ def test_value_softmax_entropy_closed_form():
     values = np.array([[0.0, 1.0], [0.0, 1.0], [np.log(2.0), 1.0]])  # (T=3, 2 series)
     p = np.array([1.0, 1.0, 2.0]) / 4.0
     np.testing.assert_allclose(value_softmax_entropy(values), [-(p * np.log(p)).sum(), np.log(3.0)], atol=1e-12)
+
+
+def _supplement_reference_1d(series, starts=None, last_value=None, last_done=False):
+    """Slow loop of the supplement reading (docs/method.md, "Supplement variant"), one series: split the rollout
+    into windows at the episode starts, append the bootstrap to the last window when it continues the episode, one
+    softmax per window, and reward step t with -p_t log p_t when the next entry's term is lower."""
+    n_steps = len(series)
+    begins = [0] + [t for t in range(1, n_steps) if starts is not None and starts[t]]
+    ends = [*begins[1:], n_steps]
+    bonus = [0.0] * n_steps
+    for begin, end in zip(begins, ends, strict=True):
+        window = [float(series[t]) for t in range(begin, end)]
+        if end == n_steps and last_value is not None and not last_done:
+            window.append(float(last_value))
+        total = sum(math.exp(v) for v in window)
+        terms = [-(math.exp(v) / total) * math.log(math.exp(v) / total) for v in window]
+        for i in range(end - begin):
+            if i + 1 < len(window) and terms[i] > terms[i + 1]:
+                bonus[begin + i] = terms[i]
+    return np.array(bonus)
+
+
+@pytest.mark.parametrize("with_last_values", [False, True])
+def test_supplement_variant_matches_slow_loop(random_values, with_last_values):
+    rng = np.random.default_rng(5)
+    last_values = rng.normal(0.0, 1.5, size=random_values.shape[1:]) if with_last_values else None
+    bonus = saeir_bonus(random_values, variant="supplement", last_values=last_values)
+    flat = random_values.reshape(random_values.shape[0], -1)  # (T, n_series)
+    flat_last = [None] * flat.shape[1] if last_values is None else last_values.reshape(-1)
+    expected = np.stack(
+        [_supplement_reference_1d(flat[:, k], last_value=flat_last[k]) for k in range(flat.shape[1])], axis=1
+    ).reshape(random_values.shape)
+    assert np.max(np.abs(bonus - expected)) < 1e-12
+    assert 0 < np.count_nonzero(expected) < expected.size
+    assert np.count_nonzero(bonus[0]) > 0  # unlike the other readings, step 0 can fire
+    if with_last_values:
+        assert np.count_nonzero(bonus[-1]) > 0
+    else:
+        assert np.all(bonus[-1] == 0.0)
+
+
+def test_supplement_variant_with_episode_starts_and_last_dones(random_values):
+    rng = np.random.default_rng(6)
+    n_steps, n_envs = random_values.shape[:2]
+    starts = _random_starts(rng, n_steps, n_envs)  # (T, n_envs), left-aligned
+    last_values = rng.normal(0.0, 1.5, size=random_values.shape[1:])
+    last_dones = rng.random(n_envs) < 0.5  # (n_envs,), left-aligned
+    last_dones[:2] = [True, False]
+    bonus = saeir_bonus(
+        random_values, variant="supplement", episode_starts=starts, last_values=last_values, last_dones=last_dones
+    )
+    expected = np.zeros_like(random_values)
+    for env in range(n_envs):
+        for index in np.ndindex(random_values.shape[2:]):
+            expected[(slice(None), env, *index)] = _supplement_reference_1d(
+                random_values[(slice(None), env, *index)], starts[:, env], last_values[(env, *index)], last_dones[env]
+            )
+    assert np.max(np.abs(bonus - expected)) < 1e-12
+    assert np.all(bonus[-1, last_dones] == 0.0)
+    assert np.count_nonzero(bonus[-1, ~last_dones]) > 0
+    # the last step of every episode that ends inside the rollout never fires
+    ends_inside = np.zeros(random_values.shape, dtype=bool)
+    ends_inside[:-1] = np.broadcast_to(starts[1:, :, None, None], ends_inside[:-1].shape)
+    assert np.all(bonus[ends_inside] == 0.0)
+
+
+def test_supplement_variant_worked_example():
+    # window [0, 0, log 2] + bootstrap 0: p = [1, 1, 2, 1] / 5
+    bonus = saeir_bonus(np.array([0.0, 0.0, math.log(2.0)]), variant="supplement", last_values=np.array(0.0))
+    small, large = -0.2 * math.log(0.2), -0.4 * math.log(0.4)
+    np.testing.assert_allclose(bonus, [0.0, 0.0, large], atol=1e-12)  # 0: equal next term; 1: next is larger
+    assert large > small
+
+
+def test_supplement_variant_on_near_flat_values():
+    """Fig. 3's arithmetic: with near-flat values p ~ 1/26 over 25 steps + bootstrap, the term is log(26)/26 and fires
+    when the next state's value is lower, about half of the steps."""
+    rng = np.random.default_rng(7)
+    values = rng.normal(0.0, 0.02, size=(25, 2000))
+    bonus = saeir_bonus(values, variant="supplement", last_values=rng.normal(0.0, 0.02, size=2000))
+    fired = bonus > 0
+    assert abs(fired.mean() - 0.5) < 0.02
+    assert 0.1 * bonus[fired].mean() == pytest.approx(0.1 * math.log(26.0) / 26.0, rel=0.01)  # 0.0125
+    assert abs(fired[0].mean() - 0.5) < 0.05
+
+
+@pytest.mark.parametrize("variant", ["paper", "supplement"])
+def test_last_dones_mean_no_look_ahead(random_values, variant):
+    last_values = np.random.default_rng(8).normal(0.0, 1.5, size=random_values.shape[1:])
+    all_done = saeir_bonus(random_values, variant=variant, last_values=last_values, last_dones=np.ones(4))
+    np.testing.assert_array_equal(all_done, saeir_bonus(random_values, variant=variant))
+    none_done = saeir_bonus(random_values, variant=variant, last_values=last_values, last_dones=np.zeros(4))
+    np.testing.assert_array_equal(none_done, saeir_bonus(random_values, variant=variant, last_values=last_values))
+    with pytest.raises(ValueError, match="last_dones"):
+        saeir_bonus(random_values, variant=variant, last_values=last_values, last_dones=np.zeros(5))

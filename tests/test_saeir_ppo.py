@@ -69,9 +69,10 @@ def test_scale_advantage_weights_hand_example():
 class CheckBonusInAdvantages(BaseCallback):
     """CheckGAE-style (SB3 tests/test_gae.py): at on_rollout_end the buffer's advantages include beta * SAEIR."""
 
-    def __init__(self, beta):
+    def __init__(self, beta, variant="code"):
         super().__init__()
         self.beta = beta
+        self.variant = variant
         self.checked = 0
 
     def _on_step(self):
@@ -79,7 +80,9 @@ class CheckBonusInAdvantages(BaseCallback):
 
     def _on_rollout_end(self):
         buffer = self.model.rollout_buffer
-        expected_bonus = self.beta * saeir_bonus(buffer.values)  # (T, E, K), from the stored values only
+        expected_bonus = self.beta * saeir_bonus(  # (T, E, K), from the stored values and the bootstrap only
+            buffer.values, variant=self.variant, last_values=buffer.last_values, last_dones=buffer.last_dones
+        )
         np.testing.assert_allclose(buffer.intrinsic_rewards, expected_bonus, atol=1e-6)
         # GAE without the bonus must differ by exactly the bonus' discounted sums: recompute both by hand
         values = self.model.policy.denormalize_values_numpy(buffer.values)
@@ -100,6 +103,15 @@ def test_saeir_bonus_reaches_the_advantages(env):
     model = SAEIR_PPO("MSHGPolicy", env, intrinsic_coef=0.5, seed=0, **TINY_KWARGS)
     model.learn(2 * 10 * env.num_envs, callback=checker)  # auto SAEIRCallback runs before the checker
     assert checker.checked == 2
+
+
+@pytest.mark.parametrize("variant", ["paper", "supplement"])
+def test_bonus_variants_reach_the_advantages(env, variant):
+    checker = CheckBonusInAdvantages(beta=0.5, variant=variant)
+    model = SAEIR_PPO("MSHGPolicy", env, intrinsic_coef=0.5, intrinsic_kwargs={"variant": variant}, seed=0, **TINY_KWARGS)
+    model.learn(2 * 10 * env.num_envs, callback=checker)
+    assert checker.checked == 2
+    assert np.count_nonzero(model.rollout_buffer.intrinsic_rewards) > 0
 
 
 def test_explicit_saeir_callback_with_intrinsic_off(env):

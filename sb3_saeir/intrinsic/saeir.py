@@ -8,7 +8,7 @@ import numpy as np
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 
-_VARIANTS = ("code", "paper")
+_VARIANTS = ("code", "paper", "supplement")
 
 
 def saeir_bonus(
@@ -16,6 +16,7 @@ def saeir_bonus(
     variant: str = "code",
     episode_starts: np.ndarray | None = None,
     last_values: np.ndarray | None = None,
+    last_dones: np.ndarray | None = None,
 ) -> np.ndarray:
     r"""
     Unscaled SAEIR bonus of every stored step, computed from the stored critic outputs of one scale.
@@ -63,20 +64,37 @@ def saeir_bonus(
     window ends at :math:`t+1`). This needs a **one-step look-ahead** :math:`v_{t+1}`: at the last step of
     the rollout ``last_values`` (the bootstrap values) play the role of :math:`v_T`; without them the last
     step gets 0. With ``episode_starts`` the look-ahead never crosses into the next episode: the last step of
-    every episode that ends inside the rollout gets 0. ``last_values`` are assumed to continue the episode of
-    step :math:`T-1`; where that episode ended at the last step, zero the last row of the result yourself
-    (e.g. ``bonus[-1] *= 1 - last_dones``).
+    every episode that ends inside the rollout gets 0. ``last_values`` continue the episode of step :math:`T-1`
+    unless ``last_dones`` says that step ended it; there the last step gets 0.
+
+    **variant="supplement"** (the reading that reproduces the supplement's Fig. 3; ``docs/method.md``,
+    "Supplement variant"). One softmax over the **whole window** (its stored values plus, where it continues the
+    episode, the bootstrap value: :math:`T+1` entries), the per-state term of every entry, and a reward at step
+    :math:`t` when the next state's term is lower:
+
+    .. math::
+
+        p_t = \frac{e^{v_t}}{\sum_{l \in W} e^{v_l}}, \qquad \hat e_t = -p_t \log p_t, \qquad
+        r_t = \hat e_t \, \mathbb{1}[\hat e_t > \hat e_{t+1}], \quad t = 0, \dots, T-1.
+
+    The last step compares with the bootstrap value's term when ``last_values`` are given and ``last_dones`` does
+    not mark the end of its episode; otherwise it gets 0 and the bootstrap is not part of the window. With
+    ``episode_starts`` every episode inside the rollout is its own window, normalised over its own steps, and its
+    last step gets 0. Near-flat values give :math:`\hat e \approx \log(T+1)/(T+1)` on about half of the steps.
 
     :param values: Stored critic outputs of one scale, time first: shape ``(T, ...)``,
         e.g. ``(T, n_envs, n_agents)`` or ``(T, n_envs, n_agents, n_scales)``.
-    :param variant: ``"code"`` (released code) or ``"paper"`` (Eqs. 12-14, literal).
     :param episode_starts: Optional, 1 where a new episode starts at step ``t``; shape ``(T, ...)`` whose
         axes are aligned from the **left** with ``values`` (missing trailing axes are broadcast, so
         ``(T, n_envs)`` works for ``values`` of shape ``(T, n_envs, n_agents)``). When given, the entropy
         window restarts at those steps. ``None`` (default) = the authors' behaviour: one window for the whole
         rollout, dones ignored.
+    :param variant: ``"code"`` (released code), ``"paper"`` (Eqs. 12-14, literal) or ``"supplement"``
+        (whole-window softmax, the supplement's Fig. 3).
     :param last_values: Values of the step after the rollout, shape ``values.shape[1:]`` (broadcastable).
-        Only used by ``variant="paper"`` as the look-ahead of the last step; ignored by ``"code"``.
+        Used by ``"paper"`` and ``"supplement"`` as the look-ahead of the last step; ignored by ``"code"``.
+    :param last_dones: Optional, 1 where the last step ended its episode (so ``last_values`` belong to the next
+        one), shape ``values.shape[1:]`` aligned from the left like ``episode_starts``. ``None`` = it did not.
     :return: The unscaled bonus, same shape as ``values``; dtype of ``values`` if it is a float dtype,
         float64 otherwise.
     """
@@ -90,13 +108,42 @@ def saeir_bonus(
     if values64.shape[0] == 0:
         return np.zeros(values.shape, dtype=out_dtype)
     starts = None if episode_starts is None else _broadcast_starts(episode_starts, values64.shape)
+    has_bootstrap = _bootstrap_mask(values64.shape, last_values, last_dones)
+    bootstrap = None
+    if last_values is not None:
+        bootstrap = np.broadcast_to(np.asarray(last_values, dtype=np.float64), values64.shape[1:])
 
+    if variant == "supplement":
+        bonus = _supplement_bonus(values64, starts, bootstrap, has_bootstrap)
+        return bonus.astype(out_dtype, copy=False)
     log_norm, entropy_before, entropy_after = _running_window_stats(values64, starts)
     if variant == "code":
         bonus = np.where(entropy_before > entropy_after, entropy_before, 0.0)
     else:
-        bonus = _paper_bonus(values64, log_norm, starts, last_values)
+        bonus = _paper_bonus(values64, log_norm, starts, bootstrap, has_bootstrap)
     return bonus.astype(out_dtype, copy=False)
+
+
+def _bootstrap_mask(shape: tuple[int, ...], last_values: np.ndarray | None, last_dones: np.ndarray | None) -> np.ndarray:
+    """
+    Where the bootstrap value continues the episode of the last step.
+
+    :param shape: Shape of the values, ``(T, ...)``.
+    :param last_values: Bootstrap values or None.
+    :param last_dones: Whether the last step ended its episode, ``shape[1:]`` aligned from the left, or None.
+    :return: Boolean array of shape ``shape[1:]``.
+    """
+    trailing = shape[1:]
+    if last_values is None:
+        return np.zeros(trailing, dtype=bool)
+    if last_dones is None:
+        return np.ones(trailing, dtype=bool)
+    dones = np.asarray(last_dones).astype(bool)
+    if dones.ndim > len(trailing) or dones.shape != trailing[: dones.ndim]:
+        raise ValueError(f"`last_dones` of shape {dones.shape} does not match values of shape {shape}")
+    # (a,) -> (a, 1, ..., 1) so that broadcasting aligns the leading axes
+    dones = dones.reshape(dones.shape + (1,) * (len(trailing) - dones.ndim))
+    return np.broadcast_to(~dones, trailing)
 
 
 def _broadcast_starts(episode_starts: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
@@ -147,8 +194,28 @@ def _running_window_stats(values: np.ndarray, starts: np.ndarray | None) -> tupl
     return log_norm, entropy_before, entropy_after
 
 
+def _has_next(values: np.ndarray, starts: np.ndarray | None, has_bootstrap: np.ndarray) -> np.ndarray:
+    """
+    Where step ``t`` has a successor in its own episode (the next stored step, or the bootstrap for the last one).
+
+    :param values: Float64 array ``(T, ...)``.
+    :param starts: Boolean episode starts ``(T, ...)`` or None.
+    :param has_bootstrap: ``(...)`` where the bootstrap continues the last step's episode.
+    :return: Boolean array ``(T, ...)``.
+    """
+    has_next = np.ones(values.shape, dtype=bool)
+    has_next[-1] = has_bootstrap
+    if starts is not None:
+        has_next[:-1] &= ~starts[1:]  # no look-ahead across an episode boundary
+    return has_next
+
+
 def _paper_bonus(
-    values: np.ndarray, log_norm: np.ndarray, starts: np.ndarray | None, last_values: np.ndarray | None
+    values: np.ndarray,
+    log_norm: np.ndarray,
+    starts: np.ndarray | None,
+    bootstrap: np.ndarray | None,
+    has_bootstrap: np.ndarray,
 ) -> np.ndarray:
     """
     Literal Eqs. 12-14: per-state entropy term with the window ending at t vs. at t + 1.
@@ -156,22 +223,64 @@ def _paper_bonus(
     :param values: Float64 array ``(T, ...)``.
     :param log_norm: Log-sum-exp of the window up to and including ``t``, ``(T, ...)``.
     :param starts: Boolean episode starts ``(T, ...)`` or None.
-    :param last_values: Look-ahead values for the last step, ``values.shape[1:]``, or None.
+    :param bootstrap: Look-ahead values for the last step, ``values.shape[1:]``, or None.
+    :param has_bootstrap: ``(...)`` where the bootstrap continues the last step's episode.
     :return: The bonus, ``(T, ...)``.
     """
     next_values = np.empty_like(values)
     next_values[:-1] = values[1:]
-    next_values[-1] = 0.0 if last_values is None else np.broadcast_to(np.asarray(last_values, np.float64), values.shape[1:])
-    has_next = np.ones(values.shape, dtype=bool)
-    has_next[-1] = last_values is not None
-    if starts is not None:
-        has_next[:-1] &= ~starts[1:]  # no look-ahead across an episode boundary
+    next_values[-1] = 0.0 if bootstrap is None else np.where(has_bootstrap, bootstrap, 0.0)
+    has_next = _has_next(values, starts, has_bootstrap)
 
     log_p_now = values - log_norm  # log p_t(t+1), (T, ...)
     log_p_next = values - np.logaddexp(log_norm, next_values)  # log p_t(t+2), (T, ...)
     term_now = -np.exp(log_p_now) * log_p_now
     term_next = -np.exp(log_p_next) * log_p_next
     return np.where(has_next & (term_now > term_next), term_now, 0.0)
+
+
+def _supplement_bonus(
+    values: np.ndarray, starts: np.ndarray | None, bootstrap: np.ndarray | None, has_bootstrap: np.ndarray
+) -> np.ndarray:
+    """
+    The supplement reading: per-state term of a softmax over the whole window, fired when the next term is lower.
+
+    A forward pass gives the running log-sum-exp of each window, a backward pass spreads the window's total to
+    all of its steps (the last window's total includes the bootstrap where it continues the episode).
+
+    :param values: Float64 array ``(T, ...)``.
+    :param starts: Boolean episode starts ``(T, ...)`` or None.
+    :param bootstrap: Bootstrap values ``values.shape[1:]`` or None.
+    :param has_bootstrap: ``(...)`` where the bootstrap continues the last step's episode.
+    :return: The bonus, ``(T, ...)``.
+    """
+    n_steps = values.shape[0]
+    running = np.empty_like(values)  # log-sum-exp of the window up to and including t
+    previous = np.full(values.shape[1:], -np.inf)
+    for t in range(n_steps):
+        if starts is not None:
+            previous = np.where(starts[t], -np.inf, previous)
+        previous = np.logaddexp(previous, values[t])
+        running[t] = previous
+    window_total = np.empty_like(values)  # log-sum-exp of the whole window of step t
+    total = running[-1]
+    if bootstrap is not None:
+        total = np.where(has_bootstrap, np.logaddexp(total, np.where(has_bootstrap, bootstrap, 0.0)), total)
+    window_total[-1] = total
+    for t in range(n_steps - 2, -1, -1):
+        window_total[t] = running[t] if starts is None else np.where(starts[t + 1], running[t], window_total[t + 1])
+    if starts is None:
+        window_total[:] = window_total[-1]  # one window: every step shares the last total (with the bootstrap)
+
+    log_p = values - window_total  # (T, ...)
+    term = -np.exp(log_p) * log_p
+    next_term = np.zeros_like(values)
+    next_term[:-1] = term[1:]
+    if bootstrap is not None:
+        log_p_bootstrap = np.where(has_bootstrap, bootstrap, 0.0) - window_total[-1]
+        next_term[-1] = -np.exp(log_p_bootstrap) * log_p_bootstrap
+    has_next = _has_next(values, starts, has_bootstrap)
+    return np.where(has_next & (term > next_term), term, 0.0)
 
 
 def value_softmax_entropy(values: np.ndarray) -> np.ndarray:
@@ -201,7 +310,8 @@ class SAEIRCallback(IntrinsicRewardCallback):
     the bonus fired) and ``rollout/value_entropy_<scale>`` (entropy of the value softmax over the whole window).
 
     :param coef: beta (0.1 in the released code)
-    :param variant: ``"code"`` (released code, default) or ``"paper"`` (Eqs. 12-14 literally)
+    :param variant: ``"code"`` (released code, default), ``"paper"`` (Eqs. 12-14 literally) or ``"supplement"``
+        (whole-window softmax, the reading that reproduces the supplement's Fig. 3)
     :param reset_at_episode_start: restart the entropy window at episode starts instead of using the whole rollout
         window (the authors' behaviour); identical for Cooperative Navigation with ``n_steps`` = episode length
     :param verbose: verbosity
@@ -218,14 +328,14 @@ class SAEIRCallback(IntrinsicRewardCallback):
 
     def compute_bonus(self, buffer: GroupedRecurrentRolloutBuffer) -> np.ndarray:
         episode_starts = buffer.episode_starts if self.reset_at_episode_start else None
-        last_values = None
-        if self.variant == "paper" and buffer.last_values is not None:
-            # the look-ahead of the last step: the bootstrap value, unless that step ended the episode
-            last_values = buffer.last_values
-        bonus = saeir_bonus(buffer.values, variant=self.variant, episode_starts=episode_starts, last_values=last_values)
-        if last_values is not None and buffer.last_dones is not None:
-            bonus[-1] *= (1.0 - buffer.last_dones)[:, None]
-        return bonus  # (T, E, K)
+        # the look-ahead of the last step: the bootstrap value, unless that step ended the episode
+        return saeir_bonus(  # (T, E, K)
+            buffer.values,
+            variant=self.variant,
+            episode_starts=episode_starts,
+            last_values=buffer.last_values,
+            last_dones=buffer.last_dones,
+        )
 
     def _log_bonus(self, bonus: np.ndarray, buffer: GroupedRecurrentRolloutBuffer) -> None:
         self.logger.record("rollout/intrinsic_reward_mean", float(bonus.mean()))

@@ -60,6 +60,7 @@ import json
 import math
 import os
 import random
+import re
 import signal
 import sys
 import time
@@ -77,7 +78,16 @@ import numpy as np
 from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
 
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.config import ALGOS, ConfigError, check_hyperparams, load_hyperparams, parse_params
+from sb3_saeir.config import (
+    ALGOS,
+    ConfigError,
+    OneLineParser,
+    check_folder,
+    check_hyperparams,
+    count,
+    load_hyperparams,
+    parse_params,
+)
 from sb3_saeir.evaluation import MultiAgentEvalCallback
 
 # Columns of the paper's Table 1 per task family: (metric key in runs.csv, header, scale)
@@ -138,14 +148,26 @@ class RunSpec:
 
 
 def parse_seeds(text: str) -> list[int]:
-    """``"1-5"`` -> [1, 2, 3, 4, 5]; ``"1,3,7"`` -> [1, 3, 7]."""
+    """``"1-5"`` -> [1, 2, 3, 4, 5]; ``"1,3,7"`` -> [1, 3, 7].
+
+    :raises ~sb3_saeir.config.ConfigError: on a part that is not a seed or an increasing range, a repeated seed, or no seed
+    """
     seeds: list[int] = []
     for part in text.split(","):
-        if "-" in part.strip()[1:]:
-            low, high = part.split("-", 1)
-            seeds.extend(range(int(low), int(high) + 1))
-        elif part.strip():
-            seeds.append(int(part))
+        if not part.strip():
+            continue
+        match = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", part)
+        if match is None:
+            raise ConfigError(f"--seeds {text!r}: {part.strip()!r} is not a seed or a range like 1-5.")
+        low, high = int(match[1]), int(match[2]) if match[2] is not None else int(match[1])
+        if high < low:
+            raise ConfigError(f"--seeds {text!r}: the range {part.strip()} is empty (write it low-high, e.g. {high}-{low}).")
+        seeds.extend(range(low, high + 1))
+    if not seeds:
+        raise ConfigError(f"--seeds {text!r} gives no seed; e.g. --seeds 1-3 or --seeds 1,3,7.")
+    repeated = sorted({seed for seed in seeds if seeds.count(seed) > 1})
+    if repeated:
+        raise ConfigError(f"--seeds {text!r} gives seed(s) {repeated} more than once: give each seed once.")
     return seeds
 
 
@@ -1214,16 +1236,16 @@ def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m sb3_saeir.benchmark", description=__doc__.split("\n")[0])
+    parser = OneLineParser(prog="python -m sb3_saeir.benchmark", description=__doc__.split("\n")[0])
     parser.add_argument("--algos", nargs="+", default=["saeir_ppo", "mappo"], help=f"methods: {', '.join(sorted(ALGOS))}")
     parser.add_argument("--tasks", nargs="+", default=["cn-sparse-n3"])
     parser.add_argument("--seeds", default="1-3", help="e.g. 1-5 or 1,3,7")
-    parser.add_argument("-n", "--n-timesteps", type=int, default=1_000_000, help="agent-steps per run")
-    parser.add_argument("--n-games", type=int, default=None, help="override the configs' n_envs (games)")
-    parser.add_argument("--eval-freq", type=int, default=50_000, help="agent-steps between evaluations")
-    parser.add_argument("--eval-episodes", type=int, default=20, help="game episodes per evaluation")
+    parser.add_argument("-n", "--n-timesteps", type=count, default=1_000_000, help="agent-steps per run")
+    parser.add_argument("--n-games", type=count, default=None, help="override the configs' n_envs (games)")
+    parser.add_argument("--eval-freq", type=count, default=50_000, help="agent-steps between evaluations")
+    parser.add_argument("--eval-episodes", type=count, default=20, help="game episodes per evaluation")
     parser.add_argument("-params", "--hyperparams", dest="params", nargs="+", default=None, help="overrides key:value")
-    parser.add_argument("--jobs", type=int, default=1, help="parallel local processes")
+    parser.add_argument("--jobs", type=count, default=1, help="parallel local processes")
     parser.add_argument("--ray-address", default=None, help="run on a Ray cluster (e.g. 'auto' or host:port)")
     parser.add_argument("--out", default="benchmark", help="output folder")
     parser.add_argument(
@@ -1260,7 +1282,44 @@ def _check_arguments(args: argparse.Namespace) -> str | None:
     for flag, value in (("--n-games", args.n_games), ("--jobs", args.jobs)):
         if value is not None and value < 1:
             return f"{flag} must be >= 1, got {value}"
+    try:
+        parse_seeds(args.seeds)
+        if not args.report_only:
+            check_folder("--out", args.out)
+    except ConfigError as error:
+        return str(error)
     return None
+
+
+def check_runs_build(specs: list[RunSpec], out: Path) -> None:
+    """Build (and close) the model of every run still to train, once per method, task and number of games, so that a
+    setting only the algorithm, the env or a config callback refuses stops the command before any run folder is made.
+
+    :raises ~sb3_saeir.config.ConfigError: naming the run and the problem
+    """
+    from sb3_saeir.experiment import Experiment
+
+    checked: set[tuple[str, str, int | None]] = set()
+    for spec in specs:
+        key = (spec.algo, spec.task, spec.n_games)
+        if key in checked or (run_folder(out, spec) / "done.json").is_file():
+            continue
+        checked.add(key)
+        experiment = Experiment(
+            spec.algo,
+            spec.task,
+            {**load_hyperparams(spec.algo, spec.task), **spec.params},
+            seed=spec.seed,
+            n_games=spec.n_games,
+        )
+        try:
+            experiment.build(verbose=0)
+            experiment.make_eval_env(spec.eval_episodes)
+        except (ValueError, TypeError, KeyError) as error:
+            message = error.args[0] if isinstance(error, KeyError) and error.args else error
+            raise ConfigError(f"cannot build {spec.algo} on {spec.task} with these settings: {message}") from error
+        finally:
+            experiment.close()
 
 
 def plan_runs(args: argparse.Namespace, params: dict[str, Any]) -> list[RunSpec]:
@@ -1338,6 +1397,11 @@ def _main(args: argparse.Namespace) -> int:
     except (ConfigError, KeyError) as error:
         return _error(str(error.args[0] if isinstance(error, KeyError) else error))
     specs = plan_runs(args, params)
+    if not args.report_only:
+        try:
+            check_runs_build(specs, out)
+        except ConfigError as error:
+            return _error(str(error))
     mismatches = [(spec, stored_spec_differences(run_folder(out, spec), spec_record(spec))) for spec in specs]
     mismatches = [(spec, differences) for spec, differences in mismatches if differences]
     if mismatches and (args.report_only or not args.rerun_changed):

@@ -9,9 +9,11 @@ algorithm class.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import inspect
 import os
+import re
 import types
 import typing
 from pathlib import Path
@@ -48,19 +50,159 @@ class ConfigError(ValueError):
     """A bad command line or config: the message names the problem and the valid choices."""
 
 
+# ------------------------------------------------------------------------------------------------ YAML
+class ConfigLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with two fixes for config files and ``-params`` values.
+
+    - Numbers as rl-zoo3 users write them (``5e-4``, ``1e6``, ``1.5E-3``, ``-1e-2``) are floats: YAML 1.1 (PyYAML)
+      only reads ``5.0e-4`` as a number and leaves ``5e-4`` a string.
+    - A key given twice in one mapping is refused (PyYAML keeps the last value without a word).
+    """
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise ConfigError(f"duplicate key {key!r} (line {key_node.start_mark.line + 1}): give each key once.")
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+# PyYAML's float resolver, with the dot optional and the exponent sign optional (YAML 1.2's float syntax)
+_FLOAT = re.compile(
+    r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+    |[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+\.[0-9_]*
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""",
+    re.VERBOSE,
+)
+ConfigLoader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag != "tag:yaml.org,2002:float"]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+ConfigLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
+
+
+def load_yaml(stream: Any) -> Any:
+    """Parse YAML (a string or an open file) with :class:`ConfigLoader`: what every config reader of the package uses.
+
+    :raises ~sb3_saeir.config.ConfigError: on a duplicate key
+    :raises yaml.YAMLError: on invalid YAML
+    """
+    return yaml.load(stream, Loader=ConfigLoader)
+
+
 def parse_params(items: list[str] | None) -> dict[str, Any]:
-    """``-params key:value key=value ...`` -> dict, values parsed as YAML (numbers, booleans, lists, dicts)."""
+    """``-params key:value key=value ...`` -> dict, values parsed as YAML (numbers such as ``5e-4``, booleans, lists,
+    dicts)."""
     params: dict[str, Any] = {}
     for item in items or []:
         separator = min((i for i in (item.find(":"), item.find("=")) if i > 0), default=-1)
         if separator < 0:
             raise ConfigError(f"-params entry {item!r} is not key:value (or key=value).")
         key, raw = item[:separator], item[separator + 1 :]
+        if key in params:
+            raise ConfigError(f"-params {key} is given twice: give each key once.")
         try:
-            params[key] = yaml.safe_load(raw)
+            params[key] = load_yaml(raw)
         except yaml.YAMLError as error:
-            raise ConfigError(f"-params {key}: cannot parse {raw!r} ({error}).") from error
+            problem = getattr(error, "problem", None) or str(error).replace("\n", " ")
+            raise ConfigError(f"-params {key}: cannot parse {raw!r} ({problem}).") from error
+        except ConfigError as error:
+            raise ConfigError(f"-params {key}: {error}") from error
     return params
+
+
+# ------------------------------------------------------------------------------------------------ command lines
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, ``<prog>: error: <message> (see --help)``, exit status 2."""
+
+    def error(self, message: str) -> typing.NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see --help).\n")
+
+
+def count(text: str) -> int:
+    """argparse type of a count: an integer, also written as rl-zoo3 users write big numbers (``1e6``, ``2.5e5``)."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
+    if not value.is_integer():
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number")
+    return int(value)
+
+
+def check_range(option: str, value: int | None, low: int, meaning: str = "") -> None:
+    """Refuse ``value < low`` of a command-line option (``None``: not given, accepted).
+
+    :param option: the option's name, e.g. ``--eval-episodes``
+    :param value: its value
+    :param low: smallest valid value
+    :param meaning: what the smallest values mean, appended to the message (e.g. ``"; 0: never"``)
+    """
+    if value is not None and value < low:
+        raise ConfigError(f"{option} must be >= {low}{meaning}, got {value}.")
+
+
+def check_device(device: str) -> None:
+    """Refuse a ``--device`` torch does not know, or ``cuda`` on a machine without CUDA (SB3 would fall back to the
+    CPU without a word)."""
+    import torch as th
+
+    if device == "auto":
+        return
+    try:
+        parsed = th.device(device)
+    except (RuntimeError, ValueError):
+        raise ConfigError(f"--device {device!r} is not a torch device; use cpu, cuda, cuda:<index> or auto.") from None
+    if parsed.type == "cuda" and not th.cuda.is_available():
+        raise ConfigError(f"--device {device}: no CUDA device is available here; use --device cpu (or auto).")
+
+
+def check_folder(option: str, folder: str | os.PathLike | None) -> None:
+    """Refuse an output folder that cannot be created or written: empty, a file, under a file, or not writable.
+
+    :param option: the option's name, e.g. ``-f``
+    :param folder: the folder (``None``: not given, accepted)
+    """
+    if folder is None:
+        return
+    if str(folder) == "":
+        raise ConfigError(f"{option} is empty: give a folder (e.g. {option} logs).")
+    path = Path(folder)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{option} {path} is a file, not a folder.")
+    existing = next(parent for parent in (path, *path.parents) if parent.exists() or parent == Path(parent.anchor))
+    if not existing.is_dir():
+        raise ConfigError(f"{option} {path}: {existing} is a file, not a folder.")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ConfigError(f"{option} {path}: {existing} is not writable.")
+
+
+def check_output_file(option: str, file: str | os.PathLike | None) -> None:
+    """Refuse an output file that cannot be written: empty, a folder, or in a folder that does not exist or is not
+    writable.
+
+    :param option: the option's name, e.g. ``--gif``
+    :param file: the file (``None``: not given, accepted)
+    """
+    if file is None:
+        return
+    path = Path(file)
+    if str(file) == "" or path.is_dir():
+        raise ConfigError(f"{option} {str(file)!r} is not a file name (e.g. {option} replay.gif).")
+    parent = path.parent
+    if not parent.is_dir():
+        raise ConfigError(f"{option} {path}: the folder {parent} does not exist.")
+    if not os.access(parent, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise ConfigError(f"{option} {path} is not writable.")
 
 
 def valid_keys(algo: str) -> list[str]:
@@ -121,16 +263,19 @@ def _annotations(algo: str) -> dict[str, Any]:
 
 
 def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[str, Any]) -> None:
-    """Unknown keys and values of the wrong type raise a :class:`ConfigError` naming the valid choices."""
+    """Unknown keys and values of the wrong type raise a :class:`~sb3_saeir.config.ConfigError` naming the valid choices."""
     keys = valid_keys(algo)
     for key in [*hyperparams, *overrides]:
         if key not in keys:
             raise ConfigError(f"unknown config key {key!r} for {algo}; valid keys: {', '.join(keys)}.")
     annotations = _annotations(algo)
+    for key, value in hyperparams.items():  # the file's own values: a string where the algorithm takes a bool...
+        if key not in _DICT_KEYS and key not in overrides and not _matches(value, annotations.get(key)):
+            raise ConfigError(f"config entry {key}={value!r} has type {type(value).__name__}, expected {annotations[key]}.")
     for key, value in overrides.items():
         if key in _DICT_KEYS:
             if value is not None and not isinstance(value, (dict, str)):
-                raise ConfigError(f"{key} must be a dict or a string like \"dict(key=value)\", got {value!r}.")
+                raise ConfigError(f'{key} must be a dict or a string like "dict(key=value)", got {value!r}.')
             continue
         reference = hyperparams.get(key)
         if reference is not None and not _type_ok(value, reference):
@@ -172,11 +317,13 @@ def load_hyperparams(algo: str, task: str, conf_file: str | os.PathLike | None =
     path = Path(conf_file) if conf_file is not None else config_path(algo)
     with open(path) as file:
         try:
-            entries = yaml.safe_load(file) or {}
+            entries = load_yaml(file) or {}
         except yaml.YAMLError as error:
             where = getattr(error, "problem_mark", None)
             line = f" (line {where.line + 1})" if where is not None else ""
             raise ConfigError(f"{path} is not valid YAML{line}: {getattr(error, 'problem', error)}.") from error
+        except ConfigError as error:
+            raise ConfigError(f"{path}: {error}") from error
     if not isinstance(entries, dict) or not all(isinstance(entry, dict) for entry in entries.values()):
         raise ConfigError(f"{path} must map task ids to dicts of hyperparameters (rl-zoo's layout).")
     if task not in entries:
@@ -185,21 +332,37 @@ def load_hyperparams(algo: str, task: str, conf_file: str | os.PathLike | None =
 
 
 def _resolve(dotted: str) -> Any:
+    """The object ``module.Name`` names; a :class:`~sb3_saeir.config.ConfigError` naming the config's ``callback`` when
+    it does not import."""
     module_name, _, name = dotted.rpartition(".")
-    return getattr(importlib.import_module(module_name), name)
+    try:
+        return getattr(importlib.import_module(module_name), name)
+    except (ImportError, AttributeError, ValueError) as error:
+        raise ConfigError(f"callback {dotted!r} does not import ({type(error).__name__}: {error}).") from error
 
 
 def build_callbacks(spec: Any) -> list[BaseCallback]:
-    """Instantiate rl-zoo style callback entries."""
+    """Instantiate rl-zoo style callback entries (``"module.Class"``, ``{"module.Class": {kwargs}}`` or a list).
+
+    :raises ~sb3_saeir.config.ConfigError: when an entry has another form, does not import, or its class refuses its arguments
+    """
     if spec is None:
         return []
     callbacks = []
     for entry in spec if isinstance(spec, list) else [spec]:
+        kwargs: dict[str, Any] | None
         if isinstance(entry, str):
-            callbacks.append(_resolve(entry)())
-        else:
+            name, kwargs = entry, {}
+        elif isinstance(entry, dict) and len(entry) == 1 and isinstance(next(iter(entry.values())), (dict, type(None))):
             ((name, kwargs),) = entry.items()
+        else:
+            raise ConfigError(f'callback entry {entry!r} is not "module.Class" or {{"module.Class": {{kwargs}}}}.')
+        try:
             callbacks.append(_resolve(name)(**(kwargs or {})))
+        except (TypeError, ValueError) as error:
+            if isinstance(error, ConfigError):
+                raise
+            raise ConfigError(f"callback {name!r}: {error}") from error
     return callbacks
 
 
@@ -220,7 +383,7 @@ def parse_policy_kwargs(policy_kwargs: Any) -> dict[str, Any]:
             raise ConfigError(f"{policy_kwargs!r} evaluates to {type(value).__name__}, expected a dict.")
         return value
     if not isinstance(policy_kwargs, dict):
-        raise ConfigError(f"expected a dict or a string like \"dict(key=value)\", got {policy_kwargs!r}.")
+        raise ConfigError(f'expected a dict or a string like "dict(key=value)", got {policy_kwargs!r}.')
     return dict(policy_kwargs)
 
 

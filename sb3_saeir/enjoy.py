@@ -11,19 +11,29 @@ from __future__ import annotations
 
 import argparse
 import sys
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from sb3_saeir.common.extras import require_extra
+from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, ConfigError, parse_params
+from sb3_saeir.config import (
+    ALGOS,
+    ConfigError,
+    OneLineParser,
+    check_output_file,
+    check_range,
+    count,
+    load_hyperparams,
+    load_yaml,
+    parse_params,
+)
 from sb3_saeir.envs import list_tasks, make_task
 from sb3_saeir.evaluation import evaluate_multiagent_policy
-from sb3_saeir.experiment import find_model
+from sb3_saeir.experiment import find_model, model_method_mismatch
 
 __all__ = ["find_model", "main", "record_gif"]
 
@@ -93,44 +103,74 @@ def run_env_kwargs(model_path: Path, task: str) -> dict[str, Any]:
     config = model_path.parent / task / "config.yml"
     if not config.is_file():
         return {}
-    return dict((yaml.safe_load(config.read_text()) or {}).get("env_kwargs") or {})
+    return dict((load_yaml(config.read_text()) or {}).get("env_kwargs") or {})
+
+
+def check_enjoy_arguments(args: argparse.Namespace) -> tuple[Path, dict[str, Any]]:
+    """Everything ``enjoy`` can check before loading the model: the method, sizes, the GIF path and its extra, the
+    model file and its method; returns the model's path and the task's keyword arguments.
+
+    :raises ~sb3_saeir.config.ConfigError: naming the first bad option
+    :raises FileNotFoundError: when there is no model to load
+    """
+    set_num_threads(args.num_threads)
+    if args.algo not in ALGOS:
+        raise ConfigError(f"unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
+    if args.task not in list_tasks():
+        raise ConfigError(f"unknown task {args.task!r}; valid choices: {', '.join(list_tasks())}.")
+    check_range("-n/--n-episodes", args.n_episodes, 1)
+    check_range("--n-games", args.n_games, 1)
+    check_range("--gif-episodes", args.gif_episodes, 1)
+    check_output_file("--gif", args.gif)
+    if args.gif is not None:
+        require_extra("imageio.v2", "plots", "--gif")
+    path = Path(args.model) if args.model else find_model(args.log_folder, args.algo, args.task, args.exp_id, args.load_best)
+    if not path.is_file():
+        raise FileNotFoundError(f"--model {path} is not a file.")
+    try:
+        config = load_hyperparams(args.algo, args.task)
+    except KeyError:
+        config = None  # no packaged entry for this task: nothing to compare with
+    mismatch = model_method_mismatch(path, args.algo, args.task, config) if config is not None else ""
+    if mismatch:
+        raise ConfigError(f"--algo {args.algo}: {mismatch}")
+    env_kwargs = parse_params(args.env_kwargs) if args.env_kwargs else run_env_kwargs(path, args.task)
+    return path, env_kwargs
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m sb3_saeir.enjoy", description=__doc__.split("\n")[0])
+    parser = OneLineParser(prog="python -m sb3_saeir.enjoy", description=__doc__.split("\n")[0])
     parser.add_argument("--algo", required=True, help=f"method: {', '.join(sorted(ALGOS))}")
     parser.add_argument("--task", "--env", dest="task", default="cn-sparse-n3", help=f"task id: {', '.join(list_tasks())}")
     parser.add_argument("-f", "--log-folder", default="logs")
     parser.add_argument("--exp-id", type=int, default=0, help="run number (0: latest)")
     parser.add_argument("--load-best", action="store_true", help="load best_model.zip instead of the final model")
     parser.add_argument("--model", default=None, help="path of a saved model (overrides -f/--exp-id)")
-    parser.add_argument("-n", "--n-episodes", type=int, default=100, help="game episodes to evaluate")
-    parser.add_argument("--n-games", type=int, default=10, help="games played in parallel")
+    parser.add_argument("-n", "--n-episodes", type=count, default=100, help="game episodes to evaluate")
+    parser.add_argument("--n-games", type=count, default=10, help="games played in parallel")
     parser.add_argument("--stochastic", action="store_true", help="sample actions instead of the greedy ones")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--gif", default=None, help="write a GIF of one game to this path")
-    parser.add_argument("--gif-episodes", type=int, default=1)
+    parser.add_argument("--gif-episodes", type=count, default=1)
     parser.add_argument("--num-threads", type=int, default=0, help="torch threads (0: the free cores, at most 2)")
     parser.add_argument(
         "--env-kwargs", nargs="+", default=None, help="task keyword arguments key:value (default: the run's env_kwargs)"
     )
     args = parser.parse_args(argv)
-    set_num_threads(args.num_threads)
-    if args.algo not in ALGOS:
-        print(f"sb3_saeir.enjoy: error: unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
-        return 2
     try:
-        path = (
-            Path(args.model) if args.model else find_model(args.log_folder, args.algo, args.task, args.exp_id, args.load_best)
-        )
-        if not path.is_file():
-            raise FileNotFoundError(f"--model {path} is not a file.")
-        env_kwargs = parse_params(args.env_kwargs) if args.env_kwargs else run_env_kwargs(path, args.task)
-    except (FileNotFoundError, ConfigError) as error:
+        path, env_kwargs = check_enjoy_arguments(args)
+        model = ALGOS[args.algo].load(path, device="cpu")
+        env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed, **env_kwargs)
+    except (FileNotFoundError, ConfigError, MissingExtraError) as error:
         print(f"sb3_saeir.enjoy: error: {error}", file=sys.stderr)
         return 2
-    model = ALGOS[args.algo].load(path, device="cpu")
-    env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed, **env_kwargs)
+    except (ValueError, TypeError, KeyError, zipfile.BadZipFile) as error:
+        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+        print(
+            f"sb3_saeir.enjoy: error: cannot load {args.algo} from {args.model or 'the run'} on {args.task}: {message}",
+            file=sys.stderr,
+        )
+        return 2
     mismatch = model_env_mismatch(model, env)
     if mismatch:
         env.close()

@@ -161,6 +161,14 @@ class MultiAgentEvalCallback(EventCallback):
         super().__init__(callback_on_new_best, verbose=verbose)
         if not is_multiagent_vec_env(eval_env):
             raise TypeError("MultiAgentEvalCallback needs an eval env from sb3_saeir.make_multiagent_vec_env.")
+        if isinstance(n_eval_episodes, bool) or not isinstance(n_eval_episodes, int) or n_eval_episodes < 1:
+            raise ValueError(
+                f"n_eval_episodes (game episodes per evaluation) must be an integer >= 1, got {n_eval_episodes!r}."
+            )
+        if isinstance(eval_freq, bool) or not isinstance(eval_freq, int) or eval_freq < 0:
+            raise ValueError(
+                f"eval_freq must be an integer >= 0 agent-steps (0: only explicit evaluate()), got {eval_freq!r}."
+            )
         self.eval_env = eval_env
         self.n_eval_episodes = n_eval_episodes
         self.eval_freq = eval_freq

@@ -15,15 +15,20 @@ The run-folder helpers (rl-zoo's ``<log-folder>/<algo>/<task>_<run>`` layout) li
 
 from __future__ import annotations
 
+import base64
+import inspect
+import json
+import zipfile
 from pathlib import Path
 from typing import Any
 
+import cloudpickle
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, build_model, load_hyperparams, parse_policy_kwargs
+from sb3_saeir.config import ALGOS, build_callbacks, build_model, load_hyperparams, parse_policy_kwargs
 from sb3_saeir.envs import get_task_spec
 from sb3_saeir.evaluation import MultiAgentEvalCallback
 
@@ -63,8 +68,8 @@ class Experiment:
         self.hyperparams = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
         self.seed = seed
         self.log_folder = Path(log_folder) if log_folder is not None else None
-        self.n_games = int(n_games if n_games is not None else self.hyperparams.get("n_envs", 8))
-        self.num_cpus = int(num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0))
+        self.n_games = _whole("n_games", n_games if n_games is not None else self.hyperparams.get("n_envs", 8), 1)
+        self.num_cpus = _whole("num_cpus", num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0), 0)
         self.model: BaseAlgorithm | None = None
         self.env: VecEnv | None = None
         self.config_callbacks: list[BaseCallback] = []
@@ -140,6 +145,7 @@ class Experiment:
         self.model, _, self.config_callbacks, self.resolved_hyperparams = build_model(
             self.algo, self.task, self.hyperparams, n_games=self.n_games, seed=self.seed, env=self.env, **model_kwargs
         )
+        check_intrinsic_reward(self.model)
         return self.model
 
     def load(self, path: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> BaseAlgorithm:
@@ -151,6 +157,7 @@ class Experiment:
         """
         if self.env is None:
             self.env = self.make_env()
+        self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
         self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log)
         self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
         return self.model
@@ -193,6 +200,92 @@ class Experiment:
                 env.close()
         self.env = None
         self._eval_envs = []
+
+
+def _whole(name: str, value: Any, low: int) -> int:
+    """``value`` as an int ``>= low``; a fractional, boolean or string value is refused (``int()`` would truncate it)."""
+    whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+    if isinstance(value, bool) or not whole or value < low:
+        raise ValueError(f"Experiment: {name} must be an integer >= {low}, got {value!r}.")
+    return int(value)
+
+
+def check_intrinsic_reward(model: BaseAlgorithm) -> None:
+    """Build the intrinsic-reward callback the model adds at ``learn()`` (``intrinsic_reward``, ``intrinsic_coef``,
+    ``intrinsic_kwargs``) once now, so that a bad ``intrinsic_kwargs`` (``variant="bogus"``) fails before training.
+
+    :raises ValueError: naming ``intrinsic_kwargs`` and the callback's message
+    """
+    from sb3_saeir.mappo.mappo import INTRINSIC_REWARDS
+
+    name = getattr(model, "intrinsic_reward", None)
+    if name is None or name not in INTRINSIC_REWARDS:
+        return
+    coef = getattr(model, "intrinsic_coef", None)
+    kwargs = dict(getattr(model, "intrinsic_kwargs", None) or {})
+    try:
+        INTRINSIC_REWARDS[name](**({} if coef is None else {"coef": coef}), **kwargs)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"intrinsic_kwargs={kwargs!r} of intrinsic_reward={name!r}: {error}") from error
+
+
+# ---------------------------------------------------------------------------------------------------- saved models
+def _policy_name(policy: Any) -> str:
+    return policy if isinstance(policy, str) else getattr(policy, "__name__", str(policy))
+
+
+def saved_model_kind(path: str | Path) -> tuple[str, str | None] | None:
+    """The policy class and ``intrinsic_reward`` of a saved model, read from the zip's ``data`` (no weights loaded);
+    ``None`` when they cannot be read (not an SB3 zip: the load reports it).
+
+    SB3's zip does not record the algorithm class; the policy class and the intrinsic reward tell the package's
+    methods apart (``sn_mappo`` has ``SNMAPPOPolicy``, ``mshg_only`` ``MSHGPolicy`` without a bonus, ...).
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+        policy = cloudpickle.loads(base64.b64decode(data["policy_class"][":serialized:"].encode()))
+    except Exception:  # any unreadable zip: SB3's load gives its own message
+        return None
+    return _policy_name(policy), data.get("intrinsic_reward")
+
+
+def method_kind(algo: str, hyperparams: dict[str, Any]) -> tuple[str, str | None]:
+    """The policy class and ``intrinsic_reward`` a method's config entry trains (see :func:`saved_model_kind`)."""
+    algo_class = ALGOS[algo]
+    policy = hyperparams.get("policy", "MlpPolicy")
+    policy_class = algo_class.policy_aliases.get(policy, policy) if isinstance(policy, str) else policy
+    default = inspect.signature(algo_class).parameters.get("intrinsic_reward")
+    intrinsic = hyperparams.get("intrinsic_reward", default.default if default is not None else None)
+    return _policy_name(policy_class), intrinsic
+
+
+def model_method_mismatch(path: str | Path, algo: str, task: str, hyperparams: dict[str, Any]) -> str:
+    """Why the model saved at ``path`` is not a model of method ``algo`` (its config entry ``hyperparams``), naming
+    the model's policy class and the methods it fits; ``""`` when it fits (or cannot be read).
+
+    :param path: the model zip
+    :param algo: the method of the command
+    :param task: the task (to look up the other methods' packaged configs)
+    :param hyperparams: ``algo``'s config entry
+    """
+    saved = saved_model_kind(path)
+    expected = method_kind(algo, hyperparams)
+    if saved is None or saved == expected:
+        return ""
+    fits = []
+    for other in sorted(ALGOS):
+        try:
+            if method_kind(other, load_hyperparams(other, task)) == saved:
+                fits.append(other)
+        except (KeyError, OSError, ValueError):
+            continue
+    policy, intrinsic = saved
+    hint = f"a model of {', '.join(fits)}; use --algo {fits[0]}" if fits else "a model of no packaged method"
+    return (
+        f"{path} is a model with {policy} and intrinsic_reward={intrinsic!r} ({hint}), not one of {algo} "
+        f"({expected[0]}, intrinsic_reward={expected[1]!r})."
+    )
 
 
 # ---------------------------------------------------------------------------------------------------- run folders

@@ -25,7 +25,7 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.utils import set_random_seed
 
-from sb3_saeir.common.callbacks import EveryAgentSteps
+from sb3_saeir.common.callbacks import BudgetEstimate, EveryAgentSteps
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
@@ -33,16 +33,65 @@ from sb3_saeir.config import (
     ALGOS,
     CONFIG_KEYS,
     ConfigError,
+    OneLineParser,
+    check_device,
+    check_folder,
     check_hyperparams,
+    check_range,
     config_path,
+    count,
     load_hyperparams,
     parse_params,
     valid_keys,
 )
 from sb3_saeir.envs import list_tasks
-from sb3_saeir.experiment import Experiment, next_run_folder
+from sb3_saeir.experiment import Experiment, model_method_mismatch, next_run_folder
 
-__all__ = ["CONFIG_KEYS", "ConfigError", "check_hyperparams", "main", "make_parser", "parse_params", "train", "valid_keys"]
+__all__ = [
+    "CONFIG_KEYS",
+    "BudgetEstimate",
+    "ConfigError",
+    "check_arguments",
+    "check_hyperparams",
+    "main",
+    "make_parser",
+    "parse_params",
+    "train",
+    "valid_keys",
+]
+
+
+def check_arguments(args: argparse.Namespace) -> None:
+    """The command-line options that no config check sees: sizes, paths, device (a
+    :class:`~sb3_saeir.config.ConfigError` naming the first bad one), checked before anything is built or written."""
+    check_range("--eval-freq", args.eval_freq, 0, " (0: never)")
+    check_range("--eval-episodes", args.eval_episodes, 1)
+    check_range("--save-freq", args.save_freq, -1, " (-1 or 0: never)")
+    check_range("--num-threads", args.num_threads, 0, " (0: the free cores)")
+    check_folder("-f/--log-folder", args.log_folder)
+    check_folder("-tb/--tensorboard-log", args.tensorboard_log)
+    check_device(args.device)
+    if args.optimize:
+        check_range("--n-trials", args.n_trials, 1)
+        check_range("--n-evaluations", args.n_evaluations, 1)
+        if args.n_jobs != -1:
+            check_range("--n-jobs", args.n_jobs, 1, " (or -1: one per CPU)")
+        if args.storage is not None:
+            check_storage(args.storage)
+
+
+def check_storage(storage: str) -> None:
+    """Refuse an Optuna storage URL whose database kind SQLAlchemy does not know (without connecting to it)."""
+    import sqlalchemy.exc
+    from sqlalchemy.engine import make_url
+
+    try:
+        make_url(storage).get_dialect()
+    except (sqlalchemy.exc.ArgumentError, ValueError) as error:
+        raise ConfigError(
+            f"--storage {storage!r} is not a database URL SQLAlchemy knows ({error}); e.g. sqlite:///study.db or "
+            "postgresql://user:password@host/db."
+        ) from None
 
 
 def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
@@ -66,7 +115,9 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     if args.num_cpus is not None:
         overrides["num_cpus"] = args.num_cpus
     check_hyperparams(args.algo, hyperparams, overrides)
-    return {**hyperparams, **overrides}
+    resolved = {**hyperparams, **overrides}
+    check_folder("tensorboard_log", resolved.get("tensorboard_log"))
+    return resolved
 
 
 def run_callbacks(args: argparse.Namespace, experiment: Experiment) -> list[BaseCallback]:
@@ -97,15 +148,25 @@ def train(args: argparse.Namespace) -> Path:
     Everything that can fail on a bad setting (config, env, model, saved model) is built before the run folder is
     created, so a bad command leaves no empty run behind.
     """
+    check_arguments(args)
     hyperparams = resolve_hyperparams(args)
-    if args.trained_agent and not Path(args.trained_agent).is_file():
-        raise ConfigError(f"--trained-agent {args.trained_agent} is not a file.")
+    if args.trained_agent:
+        if not Path(args.trained_agent).is_file():
+            raise ConfigError(f"--trained-agent {args.trained_agent} is not a file.")
+        mismatch = model_method_mismatch(args.trained_agent, args.algo, args.task, hyperparams)
+        if mismatch:
+            raise ConfigError(f"--trained-agent {mismatch}")
     set_num_threads(args.num_threads)
     seed = int(np.random.randint(2**31 - 1)) if args.seed < 0 else args.seed
     set_random_seed(seed)
     save_path = next_run_folder(args.log_folder, args.algo, args.task)
     experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
     build_experiment(experiment, args)
+    try:
+        callbacks = [*run_callbacks(args, experiment), BudgetEstimate(experiment.n_timesteps)]
+    except (ValueError, TypeError) as error:
+        experiment.close()
+        raise ConfigError(f"cannot set up evaluation or checkpoints: {error}") from error
     params_path = save_path / args.task
     params_path.mkdir(parents=True, exist_ok=False)
     assert experiment.model is not None and experiment.env is not None
@@ -118,7 +179,6 @@ def train(args: argparse.Namespace) -> Path:
         print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
     print(f"Log folder: {save_path}")
     start = time.time()
-    callbacks = [*run_callbacks(args, experiment), BudgetEstimate(n_timesteps)]
     try:
         experiment.learn(
             n_timesteps, callbacks=callbacks, progress_bar=args.progress, reset_num_timesteps=not args.trained_agent
@@ -132,7 +192,8 @@ def train(args: argparse.Namespace) -> Path:
 
 
 def build_experiment(experiment: Experiment, args: argparse.Namespace) -> None:
-    """Build the env and the model (or load ``--trained-agent``); a bad setting becomes a :class:`ConfigError`."""
+    """Build the env and the model (or load ``--trained-agent``); a bad setting becomes a
+    :class:`~sb3_saeir.config.ConfigError`."""
     try:
         if args.trained_agent:
             experiment.load(args.trained_agent, device=args.device, tensorboard_log=args.tensorboard_log)
@@ -140,41 +201,14 @@ def build_experiment(experiment: Experiment, args: argparse.Namespace) -> None:
             experiment.build(verbose=args.verbose, device=args.device, tensorboard_log=args.tensorboard_log)
     except (ValueError, TypeError, KeyError, zipfile.BadZipFile) as error:
         experiment.close()
+        if isinstance(error, ConfigError):
+            raise
         message = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
         raise ConfigError(f"cannot build {args.algo} on {args.task} with these settings: {message}") from error
 
 
-class BudgetEstimate(BaseCallback):
-    """After the first rollout and update, print how long the whole budget will take at that rate."""
-
-    def __init__(self, total_timesteps: int) -> None:
-        super().__init__()
-        self.total_timesteps = total_timesteps
-        self.start = 0.0
-        self.printed = False
-
-    def _on_training_start(self) -> None:
-        self.start = time.time()
-
-    def _on_step(self) -> bool:
-        return True
-
-    def _on_rollout_start(self) -> None:
-        done = self.model.num_timesteps - self.model._num_timesteps_at_start
-        if self.printed or done <= 0:
-            return
-        self.printed = True
-        rate = done / max(time.time() - self.start, 1e-9)
-        hours = (self.total_timesteps - done) / rate / 3600
-        print(
-            f"First rollout and update: {rate:,.0f} agent-steps/s; the {self.total_timesteps:,} agent-steps take about "
-            f"{hours:.1f} h at this rate (Ctrl-C saves the model and stops).",
-            flush=True,
-        )
-
-
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="python -m sb3_saeir.train",
         description="Train a method from its rl-zoo style YAML config.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
@@ -183,11 +217,11 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--task", "--env", dest="task", default="cn-sparse-n3", help=f"task id: {', '.join(list_tasks())}")
     parser.add_argument("--seed", type=int, default=0, help="random seed (-1: draw one)")
     parser.add_argument("-conf", "--conf-file", default=None, help="zoo-format YAML (default: zoo_configs/<algo>.yml)")
-    parser.add_argument("-n", "--n-timesteps", type=int, default=None, help="override n_timesteps (agent-steps)")
-    parser.add_argument("--n-games", type=int, default=None, help="override n_envs (number of games)")
-    parser.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every this many agent-steps (0: never)")
-    parser.add_argument("--eval-episodes", type=int, default=20, help="game episodes per evaluation")
-    parser.add_argument("--save-freq", type=int, default=-1, help="checkpoint every this many agent-steps (-1: never)")
+    parser.add_argument("-n", "--n-timesteps", type=count, default=None, help="override n_timesteps (agent-steps)")
+    parser.add_argument("--n-games", type=count, default=None, help="override n_envs (number of games)")
+    parser.add_argument("--eval-freq", type=count, default=25_000, help="evaluate every this many agent-steps (0: never)")
+    parser.add_argument("--eval-episodes", type=count, default=20, help="game episodes per evaluation")
+    parser.add_argument("--save-freq", type=count, default=-1, help="checkpoint every this many agent-steps (-1: never)")
     parser.add_argument("-f", "--log-folder", default="logs", help="log folder")
     parser.add_argument("-tb", "--tensorboard-log", default=None, help="tensorboard log folder")
     parser.add_argument("--device", default="cpu", help="torch device")
@@ -206,11 +240,11 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("-i", "--trained-agent", default="", help="continue training this saved model")
     parser.add_argument("--verbose", type=int, default=1)
     parser.add_argument("-optimize", "--optimize-hyperparameters", "--optimize", dest="optimize", action="store_true")
-    parser.add_argument("--n-trials", type=int, default=10, help="Optuna trials (this worker)")
+    parser.add_argument("--n-trials", type=count, default=10, help="Optuna trials (this worker)")
     parser.add_argument("--n-jobs", type=int, default=1, help="parallel trials in this process")
     parser.add_argument("--sampler", choices=["random", "tpe"], default="tpe")
     parser.add_argument("--pruner", choices=["median", "none"], default="median")
-    parser.add_argument("--n-evaluations", type=int, default=2, help="evaluations per trial (for pruning)")
+    parser.add_argument("--n-evaluations", type=count, default=2, help="evaluations per trial (for pruning)")
     parser.add_argument("--storage", default=None, help="Optuna storage URL (default: SQLite file in the log folder)")
     parser.add_argument("--study-name", default=None, help="Optuna study name (default: <algo>_<task>)")
     return parser
@@ -223,6 +257,7 @@ def main(argv: list[str] | None = None) -> int:
             require_extra("optuna", "zoo", "--optimize")
             from sb3_saeir.hyperparams_opt import optimize
 
+            check_arguments(args)
             optimize(args, resolve_hyperparams(args))
         else:
             train(args)

@@ -21,7 +21,10 @@ bridges the two:
   the packaged ``zoo_configs/<algo>.yml`` and adds ``vec_env_wrapper:'sb3_saeir.zoo.games_to_agents'`` to
   ``-params`` unless the config entry or ``-params`` already sets a ``vec_env_wrapper``; (enjoy) runs at least 2 games
   and builds the construction-only game envs in-process. The wrapper lands in the run's ``config.yml``, so the
-  replay (and any rl-zoo3 tool reading ``config.yml``) rebuilds the same multi-agent env.
+  replay (and any rl-zoo3 tool reading ``config.yml``) rebuilds the same multi-agent env. On a package task,
+  ``train`` prints the ETA line of ``python -m sb3_saeir.train`` after the first rollout and update
+  (:class:`~sb3_saeir.common.callbacks.BudgetEstimate`); the config file is read with the package's YAML loader
+  (``5e-4`` is a float; a key given twice is refused with one line, exit status 2).
 
 Commands (``--num-threads 1`` matters on small CPUs; ``--device cpu`` avoids rl-zoo3's ``auto``)::
 
@@ -103,7 +106,6 @@ from sb3_saeir.evaluation import summarise_episodes
 ENTRY_POINT = "sb3_saeir.zoo:SAEIRGameEnv"
 WRAPPER_NAME = "sb3_saeir.zoo.games_to_agents"
 GAMES_MONITOR = "games"  # -> games.monitor.csv
-
 
 
 class EnjoySession:
@@ -370,18 +372,20 @@ def _load_zoo_entry(conf: str, env_id: str) -> dict[str, Any] | None:
     import importlib
     from pathlib import Path
 
-    import yaml
+    from sb3_saeir.config import ConfigError, load_yaml
 
     try:
         if conf.endswith((".yml", ".yaml")):
             with open(conf) as file:
-                entries = yaml.safe_load(file) or {}
+                entries = load_yaml(file) or {}
         elif conf.endswith(".py"):
             namespace: dict[str, Any] = {}
             exec(Path(conf).read_text(), namespace)
             entries = namespace["hyperparams"]
         else:
             entries = importlib.import_module(conf).hyperparams
+    except ConfigError as error:  # a duplicate key: rl-zoo3 would keep the last value without a word
+        raise ConfigError(f"--conf-file {conf}: {error}") from error
     except Exception:
         return None
     entry = entries.get(env_id, entries.get("default"))
@@ -521,10 +525,41 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run_train(argv: Sequence[str]) -> int:
+    from unittest import mock
+
+    import yaml
+    from rl_zoo3.exp_manager import ExperimentManager
     from rl_zoo3.train import train
 
-    sys.argv = ["python -m sb3_saeir.zoo train", *prepare_train_args(argv)]
-    train()
+    from sb3_saeir.config import ConfigError, load_yaml
+
+    try:
+        new_argv = prepare_train_args(argv)
+    except ConfigError as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
+    sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
+    package_env = is_package_env(_mini_parser([(["--env"], {"default": "CartPole-v1"})]).parse_known_args(new_argv)[0].env)
+    original_learn = ExperimentManager.learn
+
+    def learn_with_eta(manager: Any, model: Any) -> None:
+        """rl-zoo3's learn, with the ETA line ``sb3_saeir.train`` prints (a package task's budget is agent-steps)."""
+        from sb3_saeir.common.callbacks import BudgetEstimate
+
+        manager.callbacks = [*manager.callbacks, BudgetEstimate(int(manager.n_timesteps))]
+        original_learn(manager, model)
+
+    # rl-zoo3 reads --conf-file with yaml.safe_load, which leaves 5e-4 a string: read it as the package's configs are
+    try:
+        with mock.patch.object(yaml, "safe_load", load_yaml):
+            if package_env:
+                with mock.patch.object(ExperimentManager, "learn", learn_with_eta):
+                    train()
+            else:
+                train()
+    except ConfigError as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
     return 0
 
 

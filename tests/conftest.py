@@ -33,3 +33,18 @@ def toy_env():
     vec_env = make_multiagent_vec_env(ToyMeetEnv, n_games=3, seed=0)
     yield vec_env
     vec_env.close()
+
+
+@pytest.fixture(scope="session")
+def load_benchmark_script():
+    """A loader of ``benchmarks/<name>.py`` as a module (the scripts are not a package)."""
+    import importlib.util
+    from pathlib import Path
+
+    def load(name):
+        spec = importlib.util.spec_from_file_location(name, Path(__file__).parent.parent / "benchmarks" / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+
+    return load

@@ -1,24 +1,16 @@
 """benchmarks/bonus_readings.py: rollouts collected as training does, without any update; the readings' statistics
 against a direct count; a benchmark run's model.zip found with its spec.json."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from sb3_saeir.benchmark import main as benchmark_main
 from sb3_saeir.intrinsic import saeir_bonus
 
-SCRIPT = Path(__file__).parent.parent / "benchmarks" / "bonus_readings.py"
-
 
 @pytest.fixture(scope="module")
-def bonus_readings():
-    spec = importlib.util.spec_from_file_location("bonus_readings", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def bonus_readings(load_benchmark_script):
+    return load_benchmark_script("bonus_readings")
 
 
 def test_rollouts_do_not_train_and_statistics_count_the_bonus(bonus_readings):

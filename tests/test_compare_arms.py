@@ -1,20 +1,13 @@
 """benchmarks/compare_arms.py: arms from several runs.csv files renamed and reported with the benchmark's functions."""
 
 import csv
-import importlib.util
-from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parent.parent / "benchmarks" / "compare_arms.py"
-
 
 @pytest.fixture(scope="module")
-def compare_arms():
-    spec = importlib.util.spec_from_file_location("compare_arms", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def compare_arms(load_benchmark_script):
+    return load_benchmark_script("compare_arms")
 
 
 def write_runs(path, algo, finals):

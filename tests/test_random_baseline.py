@@ -1,19 +1,11 @@
 """benchmarks/random_baseline.py: the random policy's rate with its interval, one Markdown row per task."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
-
-SCRIPT = Path(__file__).parent.parent / "benchmarks" / "random_baseline.py"
 
 
 @pytest.fixture(scope="module")
-def random_baseline():
-    spec = importlib.util.spec_from_file_location("random_baseline", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def random_baseline(load_benchmark_script):
+    return load_benchmark_script("random_baseline")
 
 
 def test_row_interval_is_the_normal_approximation(random_baseline):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
@@ -60,8 +62,8 @@ class EveryAgentSteps(BaseCallback):
 
     def __init__(self, callback: BaseCallback, frequency: int) -> None:
         super().__init__()
-        if frequency < 1:
-            raise ValueError(f"frequency must be a positive number of agent-steps, got {frequency}.")
+        if isinstance(frequency, bool) or not isinstance(frequency, int) or frequency < 1:
+            raise ValueError(f"frequency must be a positive number of agent-steps, got {frequency!r}.")
         self.callback = callback
         self.frequency = frequency
         self.last = 0
@@ -76,3 +78,36 @@ class EveryAgentSteps(BaseCallback):
             self.callback.update_locals(self.locals)
             return self.callback.on_step()
         return True
+
+
+class BudgetEstimate(BaseCallback):
+    """After the first rollout and update, print how long the whole budget will take at that rate (the ETA line of
+    ``python -m sb3_saeir.train`` and ``python -m sb3_saeir.zoo train``).
+
+    :param total_timesteps: the run's budget in agent-steps
+    """
+
+    def __init__(self, total_timesteps: int) -> None:
+        super().__init__()
+        self.total_timesteps = total_timesteps
+        self.start = 0.0
+        self.printed = False
+
+    def _on_training_start(self) -> None:
+        self.start = time.time()
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_start(self) -> None:
+        done = self.model.num_timesteps - self.model._num_timesteps_at_start
+        if self.printed or done <= 0:
+            return
+        self.printed = True
+        rate = done / max(time.time() - self.start, 1e-9)
+        hours = (self.total_timesteps - done) / rate / 3600
+        print(
+            f"First rollout and update: {rate:,.0f} agent-steps/s; the {self.total_timesteps:,} agent-steps take about "
+            f"{hours:.1f} h at this rate (Ctrl-C saves the model and stops).",
+            flush=True,
+        )

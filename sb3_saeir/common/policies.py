@@ -7,6 +7,7 @@ observations). Every critic scale sees the N agents of a game together: its inpu
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,7 @@ from torch import nn
 from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm
 from sb3_saeir.common.type_aliases import MultiAgentStates
+from sb3_saeir.common.utils import check_bool
 
 # SB3 ActorCriticPolicy arguments these policies cannot honour, with what to use instead.
 _UNSUPPORTED_SB3_ARGUMENTS = {
@@ -135,6 +137,13 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         optimizer_kwargs: dict[str, Any] | None = None,
         **sb3_kwargs: Any,
     ) -> None:
+        check_bool(
+            type(self).__name__,
+            recurrent_actor=recurrent_actor,
+            normalize_values=normalize_values,
+            critic_gumbel_noise=critic_gumbel_noise,
+            ortho_init=ortho_init,
+        )
         check_sb3_policy_kwargs(type(self).__name__, sb3_kwargs, ortho_init)
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
             raise ValueError(
@@ -415,7 +424,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         :return: actions and the new actor states (``None`` for an MLP actor)
         """
         self.set_training_mode(False)
-        obs_array = np.asarray(observation, dtype=np.float32)
+        obs_array = self._predict_observations(observation)
         single = obs_array.ndim == len(self.observation_space.shape)  # type: ignore[arg-type]
         if single:
             obs_array = obs_array[None]
@@ -427,11 +436,11 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
                 hidden = (
                     th.zeros(n_agents, self.hidden_size, device=self.device)
                     if state is None
-                    else th.as_tensor(np.asarray(state, dtype=np.float32), device=self.device).reshape(n_agents, -1)
+                    else th.as_tensor(self._predict_array("state", state, (n_agents, self.hidden_size)), device=self.device)
                 )
             starts = th.zeros(n_agents, device=self.device)
             if episode_start is not None:
-                starts = th.as_tensor(np.asarray(episode_start, dtype=np.float32), device=self.device).reshape(n_agents)
+                starts = th.as_tensor(self._predict_array("episode_start", episode_start, (n_agents,)), device=self.device)
             latent_pi, new_hidden = self._actor_latent(obs_tensor.unsqueeze(0), hidden, starts.unsqueeze(0))
             actions = self._distribution(latent_pi.squeeze(0)).get_actions(deterministic=deterministic)
         actions_np = actions.cpu().numpy().reshape((-1, *self.action_space.shape))  # type: ignore[misc, arg-type]
@@ -443,6 +452,61 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
             new_state = new_state[0] if new_state is not None else None
         return actions_np, new_state
 
+    def _predict_observations(self, observation: Any) -> np.ndarray:
+        """``observation`` of :meth:`predict` as float32, checked: ``(d,)`` or ``(B, d)`` of finite numbers.
+
+        :raises ValueError: one line naming ``observation`` and the shape expected
+        """
+        shape = tuple(self.observation_space.shape)  # type: ignore[arg-type]
+        try:
+            obs_array = np.asarray(observation, dtype=np.float32)
+        except (TypeError, ValueError) as error:
+            raise ValueError(
+                f"predict: observation must be an array of numbers of shape {shape} or (n_agents, *{shape}); {error}"
+            ) from None
+        if obs_array.shape != shape and obs_array.shape[1:] != shape:
+            raise ValueError(
+                f"predict: observation of shape {obs_array.shape} does not match the observation space: expected one "
+                f"agent's {shape} or a batch (n_agents, *{shape})."
+            )
+        if not np.isfinite(obs_array).all():
+            raise ValueError("predict: observation holds NaN or infinite values; pass finite observations.")
+        return obs_array
+
+    @staticmethod
+    def _predict_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+        """``state`` or ``episode_start`` of :meth:`predict` as float32 of the shape the observations imply.
+
+        :raises ValueError: one line naming the argument and the shape expected
+        """
+        try:
+            array = np.asarray(value, dtype=np.float32)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"predict: {name} must be an array of numbers of shape {shape}; {error}") from None
+        if array.size != int(np.prod(shape)) or (array.ndim > 0 and array.shape[-1] != shape[-1]):
+            raise ValueError(
+                f"predict: {name} of shape {array.shape} does not match the observations: expected {shape} "
+                "(one row per agent; pass the state predict returned, or None)."
+            )
+        return array.reshape(shape)
+
+
+DEFAULT_GROUP_SIZE = 2  # k of the group scale (the authors' ``num_in_group``)
+
+
+def _default_scales(n_agents: int) -> tuple[str, ...]:
+    """The default critic scales for ``n_agents`` agents: all of :data:`SCALES`, without the group scale where the
+    default group size is not smaller than the team (its hyperedges would hold the whole team), with a warning."""
+    if n_agents <= 1 or DEFAULT_GROUP_SIZE < n_agents:
+        return SCALES
+    warnings.warn(
+        f"MSHGPolicy: the group scale is left out with {n_agents} agents per game (group_size={DEFAULT_GROUP_SIZE} "
+        "groups would hold the whole team and copy the team critic); the critics are ('team', 'individual').",
+        UserWarning,
+        stacklevel=3,
+    )
+    return tuple(scale for scale in SCALES if scale != "group")
+
 
 class MSHGPolicy(MultiAgentActorCriticPolicy):
     """SAEIR's multi-scale hypergraph (MSHG) critic with the parameter-shared recurrent actor.
@@ -452,8 +516,11 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
     attention, edge-type weights, edge-to-node aggregation, value head (spec §1.2-1.8). Each critic node gets its own
     agent's observation; the hypergraph provides the joint view (spec decision 12).
 
-    :param scales: which critics to build (any non-empty subset of ``("team", "group", "individual")``, in that order)
-    :param group_size: k, hyperedge size of the group scale (``num_in_group`` = 2)
+    :param scales: which critics to build (any non-empty subset of ``("team", "group", "individual")``, in that order).
+        ``None`` (default): all three, except on 2-agent games with the default ``group_size``, where the group scale
+        would copy the team scale and is left out (with a ``UserWarning`` saying so)
+    :param group_size: k, hyperedge size of the group scale (``num_in_group``; ``None``: 2). Set explicitly with the
+        group scale, it must be smaller than the number of agents
     :param n_edge_types: edge types of the group scale (``num_group`` = 3)
     :param gumbel_tau: Gumbel-softmax temperature (0.5)
     :param kwargs: see :class:`MultiAgentActorCriticPolicy`
@@ -464,19 +531,22 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
         observation_space: spaces.Space,
         action_space: spaces.Space,
         lr_schedule: Schedule,
-        scales: tuple[str, ...] | list[str] = SCALES,
-        group_size: int = 2,
+        scales: tuple[str, ...] | list[str] | None = None,
+        group_size: int | None = None,
         n_edge_types: int = 3,
         gumbel_tau: float = 0.5,
         **kwargs: Any,
     ) -> None:
+        n_agents = int(kwargs.get("n_agents", 1))
+        scales = _default_scales(n_agents) if scales is None and group_size is None else scales
+        scales = SCALES if scales is None else scales
+        group_size = DEFAULT_GROUP_SIZE if group_size is None else group_size
         unknown = [scale for scale in scales if scale not in SCALES]
         if isinstance(scales, str) or not scales or unknown or len(set(scales)) != len(scales):
             raise ValueError(f"MSHGPolicy: scales must be a non-empty subset of {SCALES}, each at most once, got {scales!r}.")
         self.critic_scales = tuple(scale for scale in SCALES if scale in scales)
         if group_size < 1 or n_edge_types < 1:
             raise ValueError(f"MSHGPolicy: group_size and n_edge_types must be >= 1, got {group_size} and {n_edge_types}.")
-        n_agents = int(kwargs.get("n_agents", 1))
         if "group" in self.critic_scales and n_agents > 1 and group_size >= n_agents:
             raise ValueError(
                 f"MSHGPolicy: group_size={group_size} must be smaller than the number of agents ({n_agents}): with k = N "

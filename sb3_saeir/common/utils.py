@@ -1,9 +1,11 @@
-"""Small helpers shared by the command lines."""
+"""Small helpers shared by the command lines and the Python API."""
 
 from __future__ import annotations
 
 import os
+from typing import Any
 
+import numpy as np
 import torch as th
 
 # Measured on a 2-core machine (benchmarks/throughput.py, cn-sparse-n3, 128 games): one training job runs 1.58x faster
@@ -36,3 +38,16 @@ def set_num_threads(num_threads: int | None) -> int:
     threads = default_num_threads() if num_threads is None or num_threads < 1 else num_threads
     th.set_num_threads(threads)
     return threads
+
+
+def check_bool(owner: str, **values: Any) -> None:
+    """Raise a one-line ``ValueError`` naming the first boolean option that is not ``True`` or ``False``.
+
+    Strings are refused on purpose: ``"no"`` and ``"False"`` are truthy and would switch the option on.
+
+    :param owner: class or function name for the message
+    :param values: option name -> value
+    """
+    for name, value in values.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{owner}: {name} must be True or False, got {value!r} ({type(value).__name__}).")

@@ -49,6 +49,16 @@ class _NoAgentDeath(BaseParallelWrapper):
             raise AttributeError(name)
         return super().__getattr__(name)
 
+    def __init__(self, env: ParallelEnv) -> None:
+        super().__init__(env)
+        self._agent_names = list(env.possible_agents)  # as vectorized: SuperSuit keeps the first names
+        self._warned: set[str] = set()
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        observations, infos = self.env.reset(seed=seed, options=options)
+        self._check_observations(observations, "reset")
+        return observations, infos
+
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
         observations, rewards, terminations, truncations, infos = self.env.step(actions)
         remaining = set(self.env.agents)
@@ -59,7 +69,66 @@ class _NoAgentDeath(BaseParallelWrapper):
                 "step: wrap the parallel env with supersuit.black_death_v3(env) so that finished agents receive zero "
                 "observations and rewards until the game ends."
             )
+        self._check_observations(observations, "step")
+        self._warn_faults(rewards, terminations, truncations)
         return observations, rewards, terminations, truncations, infos
+
+    def _game_name(self) -> str:
+        return str((getattr(self.env, "metadata", None) or {}).get("name") or type(self.env.unwrapped).__name__)
+
+    def _check_observations(self, observations: dict, when: str) -> None:
+        """Raise one line naming the agent and the game when an observation is missing, unknown or of another shape
+        than the declared observation space."""
+        possible = self._agent_names
+        unknown = sorted(set(observations) - set(possible), key=str)
+        if unknown:
+            raise ValueError(
+                f"{self._game_name()}: {when} returned observations of agents {unknown} not in the game's "
+                f"first possible_agents {possible} (agents renamed?): keep the agent names in every reset and step."
+            )
+        for agent in possible:
+            if agent not in observations:
+                raise ValueError(
+                    f"{self._game_name()}: {when} returned no observation of agent {agent!r}: every agent of "
+                    "possible_agents needs one in every reset and step (supersuit.black_death_v3 for finished agents)."
+                )
+            expected = self.env.observation_space(agent).shape
+            shape = np.shape(observations[agent])
+            if expected is not None and shape != tuple(expected):
+                raise ValueError(
+                    f"{self._game_name()}: {when} returned an observation of shape {shape} for agent {agent!r}, its "
+                    f"observation space declares {tuple(expected)}: return observations of the declared shape."
+                )
+
+    def _warn_faults(self, rewards: dict, terminations: dict, truncations: dict) -> None:
+        """Warn once per game instance about rewards of huge magnitude and agents terminated while others continue."""
+        warned = self._warned
+        if "reward" not in warned:
+            values = np.array([float(value) for value in rewards.values()], dtype=np.float64)
+            huge = np.isfinite(values) & (np.abs(values) >= HUGE_REWARD)
+            if huge.any():
+                warned.add("reward")
+                agent = list(rewards)[int(np.flatnonzero(huge)[0])]
+                warnings.warn(
+                    f"{self._game_name()}: agent {agent!r} received a reward of {values[huge][0]:.3g} (|r| >= "
+                    f"{HUGE_REWARD:.0e}); returns and advantages overflow float32: scale the rewards down.",
+                    stacklevel=2,
+                )
+        if "termination" not in warned:
+            done = {agent for agent in terminations if terminations[agent] or truncations.get(agent, False)}
+            if done and done != set(terminations):
+                warned.add("termination")
+                warnings.warn(
+                    f"{self._game_name()}: agents {sorted(done, key=str)} are done while others continue; "
+                    "the game's slots are reset together only when every agent is done, so a done agent's slot "
+                    "keeps stepping: end all agents of a game together (or wrap with supersuit.black_death_v3).",
+                    stacklevel=2,
+                )
+
+
+# Rewards of this magnitude or more get a warning: the value loss squares value errors of this size in float32, whose
+# largest value is 3.4e38, so a reward of 1e19 already gives inf losses; 1e18 leaves one order of margin.
+HUGE_REWARD = 1e18
 
 
 def check_parallel_env(par_env: Any) -> None:
@@ -98,6 +167,38 @@ def check_parallel_env(par_env: Any) -> None:
         raise ValueError(
             f"{'; '.join(problems)}. Parameter sharing needs identical spaces: wrap the env with "
             f"{' and '.join(wrappers)} (and, to tell the agents apart, supersuit.agent_indicator_v0)."
+        )
+
+
+def check_vec_env_options(n_games: Any, num_cpus: Any, mark_truncation: Any, check_finite: Any) -> None:
+    """Refuse bad sizes and non-bool flags of :func:`make_multiagent_vec_env` with one line naming the argument.
+
+    :param n_games: an integer >= 1
+    :param num_cpus: an integer >= 0
+    :param mark_truncation: a bool
+    :param check_finite: a bool
+    :raises ValueError: for a bad size
+    :raises TypeError: for a non-bool flag
+    """
+    if isinstance(n_games, bool) or not isinstance(n_games, (int, np.integer)) or n_games < 1:
+        raise ValueError(f"n_games must be a positive integer (number of game copies), got {n_games!r}.")
+    if isinstance(num_cpus, bool) or not isinstance(num_cpus, (int, np.integer)) or num_cpus < 0:
+        raise ValueError(f"num_cpus must be an integer >= 0 (0: every game in this process), got {num_cpus!r}.")
+    for name, value in (("mark_truncation", mark_truncation), ("check_finite", check_finite)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {value!r} ({type(value).__name__}); pass a bool.")
+
+
+def check_action_space(action_space: spaces.Space) -> None:
+    """Refuse ``Discrete(n, start != 0)`` action spaces: the policies' categorical actions are 0 .. n - 1.
+
+    :param action_space: an agent's action space
+    :raises ValueError: naming the space and the fix
+    """
+    if isinstance(action_space, spaces.Discrete) and int(action_space.start) != 0:
+        raise ValueError(
+            f"Action space {action_space} starts at {int(action_space.start)}: the policies emit actions 0 .. n - 1, "
+            f"so declare Discrete({int(action_space.n)}) and add {int(action_space.start)} to the action inside the env."
         )
 
 
@@ -178,12 +279,10 @@ class MultiAgentVecEnv(VecEnv):
     ) -> None:
         import supersuit as ss
 
-        if not isinstance(n_games, (int, np.integer)) or isinstance(n_games, bool) or n_games < 1:
-            raise ValueError(f"n_games must be a positive integer (number of game copies), got {n_games!r}.")
-        if num_cpus < 0:
-            raise ValueError(f"num_cpus must be >= 0, got {num_cpus}.")
+        check_vec_env_options(n_games, num_cpus, mark_truncation, check_finite)
         probe_env = env_fn()
         check_parallel_env(probe_env)
+        check_action_space(probe_env.action_space(probe_env.possible_agents[0]))
         self.possible_agents: list[str] = list(probe_env.possible_agents)
         self.n_agents = len(self.possible_agents)
         self.n_games = int(n_games)
@@ -459,13 +558,13 @@ def make_multiagent_vec_env(
         ``docs/tasks.md``; all games in this process); ``"supersuit"``: the games through SuperSuit, as any
         PettingZoo env; ``None`` (default): native when the task has one and ``num_cpus <= 1``, else SuperSuit
     :param check_finite: raise an error naming the game, agent and step when an observation or reward is NaN or
-        infinite (on by default; ``False`` skips the check). Games through SuperSuit only: the native navigation
-        engine's values are finite by construction
+        infinite (on by default, for games through SuperSuit and the native navigation env alike; ``False`` skips it)
     :param task_kwargs: keyword arguments for the task constructor (e.g. ``N=4``, ``render_mode="rgb_array"``)
     :return: the vector env; ``env.n_agents``, ``env.n_games`` and ``env.possible_agents`` describe the layout
     """
     from sb3_saeir.envs.registry import get_native_vec_env_factory, get_task_factory
 
+    check_vec_env_options(n_games, num_cpus, mark_truncation, check_finite)
     if backend not in VEC_ENV_BACKENDS:
         raise ValueError(f"backend must be one of {VEC_ENV_BACKENDS[1:]} or None (the task's default), got {backend!r}.")
     if backend != "supersuit" and (isinstance(task, str) or callable(task)):
@@ -479,6 +578,7 @@ def make_multiagent_vec_env(
             )
         if native is not None and (backend == "native" or num_cpus <= 1):
             native_env: MultiAgentVecEnv = native(n_games, mark_truncation=mark_truncation, **task_kwargs)
+            native_env.check_finite = check_finite
             if seed is not None:
                 native_env.seed(seed)
             return native_env

@@ -43,6 +43,7 @@ from gymnasium.utils import EzPickle
 from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY
+from sb3_saeir.envs.navigation_core import check_bool, check_positive_int
 
 OBSERVATION_SIZE = 115  # simple115v2
 N_ACTIONS = 19  # gfootball's default action set
@@ -126,8 +127,8 @@ class FootballEnv(ParallelEnv, EzPickle):
             render_mode=render_mode,
             other_config_options=other_config_options,
         )
-        if N < 1:
-            raise ValueError(f"N must be >= 1, got {N}.")
+        check_positive_int("N", N)
+        check_bool("share_reward", share_reward)
         if render_mode is not None:
             raise ValueError(f"render_mode={render_mode!r} is not supported by the football tasks (only None).")
         football_env = import_gfootball()

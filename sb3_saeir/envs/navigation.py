@@ -41,6 +41,8 @@ from sb3_saeir.envs.navigation_core import (
     REWARDS,
     WORLDS,
     NavigationCore,
+    check_finite_option,
+    check_positive_int,
     observation_dim,
 )
 
@@ -197,6 +199,7 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
 
     @max_cycles.setter
     def max_cycles(self, value: int) -> None:
+        check_positive_int("max_cycles", value)
         self.core.max_cycles[0] = int(value)
 
     @property
@@ -206,6 +209,7 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
 
     @cover_radius.setter
     def cover_radius(self, value: float) -> None:
+        check_finite_option("cover_radius", value)
         self.core.cover_radius[0] = float(value)
 
     @property
@@ -215,6 +219,7 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
 
     @collision_penalty.setter
     def collision_penalty(self, value: float) -> None:
+        check_finite_option("collision_penalty", value)
         self.core.collision_penalty[0] = float(value)
 
     # PettingZoo API -----------------------------------------------------------------

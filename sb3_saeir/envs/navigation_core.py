@@ -24,6 +24,7 @@ agents; only resets loop over the games being reset (one generator each).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -52,6 +53,80 @@ LANDMARK_RANGE = {"mpe": 0.8, "mpe2": 1.0}
 def observation_dim(n_agents: int) -> int:
     """Length of one agent's observation: velocity, position, landmarks, other agents, their (silent) messages."""
     return 4 + 2 * n_agents + 4 * (n_agents - 1)
+
+
+# Bytes of float64 working arrays one step allocates per agent-observation entry and per agent pair (observations,
+# their float32 copy, the pairwise offsets and distances of agents and landmarks, with temporaries): an upper estimate.
+_BYTES_PER_OBS_ENTRY = 8 * 4
+_BYTES_PER_PAIR = 8 * 12
+
+
+def check_positive_int(name: str, value: Any) -> None:
+    """Refuse anything but an integer >= 1 (bools, floats such as ``2.5`` or ``25.0``, strings), naming ``name``.
+
+    :param name: the option, for the message
+    :param value: its value
+    :raises ValueError: with one line naming the option
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}; pass a whole number such as {name}=3.")
+
+
+def check_bool(name: str, value: Any) -> None:
+    """Refuse non-bool values of a boolean option (``"no"`` would be true), naming ``name``.
+
+    :param name: the option, for the message
+    :param value: its value
+    :raises TypeError: with one line naming the option
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {value!r} ({type(value).__name__}); pass a bool.")
+
+
+def check_finite_option(name: str, value: Any) -> None:
+    """Refuse non-numbers and NaN / infinite values of a float option, naming ``name``.
+
+    :param name: the option, for the message
+    :param value: its value
+    :raises ValueError: with one line naming the option
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a finite number, got {value!r} ({type(value).__name__}).")
+    if not np.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}; a NaN or infinite value makes NaN rewards.")
+
+
+def memory_estimate(n_games: int, N: int) -> int:
+    """Upper estimate of the bytes the engine's step of ``n_games`` games of ``N`` agents works with.
+
+    :param n_games: games
+    :param N: agents per game
+    :return: bytes
+    """
+    return n_games * N * (observation_dim(N) * _BYTES_PER_OBS_ENTRY + 2 * N * _BYTES_PER_PAIR)
+
+
+def _available_memory() -> int:
+    """Physical memory of this machine in bytes (16 GiB where the OS does not tell)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return 16 * 2**30
+
+
+def check_memory(n_games: int, N: int) -> None:
+    """Refuse a size whose step cannot fit in half of this machine's memory, with the estimate.
+
+    :param n_games: games
+    :param N: agents per game
+    :raises MemoryError: with one line giving the estimate and the fix
+    """
+    needed, limit = memory_estimate(n_games, N), _available_memory() // 2
+    if needed > limit:
+        raise MemoryError(
+            f"n_games={n_games} games of N={N} agents need about {needed / 2**30:.1f} GiB per step (observations grow "
+            f"as n_games * N**2), more than half of this machine's {2 * limit / 2**30:.1f} GiB: lower N or n_games."
+        )
 
 
 @dataclass
@@ -122,16 +197,17 @@ class NavigationCore:
         cover_radius: float = COVER_RADIUS,
         collision_penalty: float = 1.0,
     ) -> None:
-        if isinstance(n_games, bool) or not isinstance(n_games, (int, np.integer)) or n_games < 1:
-            raise ValueError(f"n_games must be a positive integer, got {n_games!r}.")
-        if isinstance(N, bool) or not isinstance(N, (int, np.integer)) or N < 1:
-            raise ValueError(f"N must be an integer >= 1, got {N!r}.")
-        if int(max_cycles) < 1:
-            raise ValueError(f"max_cycles must be >= 1, got {max_cycles}.")
+        check_positive_int("n_games", n_games)
+        check_positive_int("N", N)
+        check_positive_int("max_cycles", max_cycles)
+        check_bool("continuous_actions", continuous_actions)
+        check_finite_option("cover_radius", cover_radius)
+        check_finite_option("collision_penalty", collision_penalty)
         if not cover_radius > 0:
             raise ValueError(f"cover_radius must be positive, got {cover_radius}.")
         if not collision_penalty >= 0:
             raise ValueError(f"collision_penalty must be >= 0 (it is subtracted), got {collision_penalty}.")
+        check_memory(int(n_games), int(N))
         self.world = _check_choice("world", world, WORLDS)
         self.reward = _check_choice("reward", reward, REWARDS)
         self.n_games = int(n_games)

@@ -22,11 +22,31 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv
+from sb3_saeir.common.vec_env import check_finite as check_finite_values
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation, navigation_spaces
-from sb3_saeir.envs.navigation_core import AGENT_SIZE, COVER_RADIUS, NavigationCore
+from sb3_saeir.envs.navigation_core import (
+    AGENT_SIZE,
+    COVER_RADIUS,
+    NavigationCore,
+    check_bool,
+    check_finite_option,
+    check_positive_int,
+)
 
 # Per-game parameters: arrays of the core, one value per game.
 _PER_GAME = {"max_cycles": int, "cover_radius": float, "collision_penalty": float}
+
+
+def check_per_game(name: str, value: Any) -> None:
+    """Refuse a bad value of a per-game parameter (a whole number >= 1 for ``max_cycles``, a finite number else).
+
+    :param name: the parameter
+    :param value: its value
+    """
+    if _PER_GAME[name] is int:
+        check_positive_int(name, value)
+    else:
+        check_finite_option(name, value)
 
 
 class NavigationGame:
@@ -60,6 +80,7 @@ class NavigationGame:
 
     def __setattr__(self, name: str, value: Any) -> None:
         if name in _PER_GAME:
+            check_per_game(name, value)
             getattr(self._vec_env.core, name)[self.game] = _PER_GAME[name](value)
         else:
             object.__setattr__(self, name, value)
@@ -104,6 +125,8 @@ class NavigationVecEnv(MultiAgentVecEnv):
     :param world: ``"mpe"`` (original MPE, the paper's world) or ``"mpe2"`` (mpe2 1.1.1)
     :param reward: ``"occupancy"`` or ``"reach"``
     :param mark_truncation: set ``infos[i]["TimeLimit.truncated"]`` when a game hits its time limit
+    :param check_finite: raise :class:`~sb3_saeir.common.vec_env.NonFiniteValueError` (naming the game, agent and
+        step) when an observation or reward is NaN or infinite, as for games through SuperSuit; ``False`` skips it
     """
 
     def __init__(
@@ -118,9 +141,11 @@ class NavigationVecEnv(MultiAgentVecEnv):
         world: str = "mpe",
         reward: str = "occupancy",
         mark_truncation: bool = False,
+        check_finite: bool = True,
     ) -> None:
-        if isinstance(n_games, bool) or not isinstance(n_games, (int, np.integer)) or n_games < 1:
-            raise ValueError(f"n_games must be a positive integer (number of game copies), got {n_games!r}.")
+        check_positive_int("n_games", n_games)
+        check_bool("mark_truncation", mark_truncation)
+        check_bool("check_finite", check_finite)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}.")
         self.core = NavigationCore(
@@ -138,7 +163,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
         self.possible_agents: list[str] = [f"agent_{i}" for i in range(self.n_agents)]
         self.num_cpus = 0
         self.mark_truncation = mark_truncation
-        self.check_finite = False  # the engine's values are finite by construction
+        self.check_finite = check_finite
         self._probe_render_mode = render_mode
         self.state_space = gym.spaces.Box(-np.inf, np.inf, (self.n_agents * self.core.obs_dim,), dtype=np.float32)
         self.games = [NavigationGame(self, g) for g in range(self.n_games)]
@@ -169,7 +194,10 @@ class NavigationVecEnv(MultiAgentVecEnv):
         self._reset_options()
         self._episode_returns[:] = 0.0
         self._episode_lengths[:] = 0
-        return self.core.observations().reshape(self.num_envs, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
+        obs = self.core.observations().reshape(self.num_envs, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
+        if self.check_finite:
+            check_finite_values(self._env_name(), obs, None, self.n_agents, self.possible_agents, self._episode_lengths)
+        return obs
 
     # ------------------------------------------------------------------ stepping
     def step_async(self, actions: np.ndarray) -> None:
@@ -186,6 +214,8 @@ class NavigationVecEnv(MultiAgentVecEnv):
         obs: np.ndarray = result.observations.reshape(G * N, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
         rewards = np.repeat(result.rewards.astype(np.float32), N)  # (G,) -> (G * N,)
         dones = np.repeat(result.truncated, N)  # (G,) -> (G * N,)
+        if self.check_finite:  # the step of each game's episode that produced these values: the next one
+            check_finite_values(self._env_name(), obs, rewards, N, self.possible_agents, self._episode_lengths + 1)
         infos: list[dict[str, Any]] = [{} for _ in range(G * N)]
         finished = np.flatnonzero(result.truncated)
         terminal_obs = obs.copy() if len(finished) else obs

@@ -6,6 +6,7 @@ Reference: ``docs/method.md``, "The intrinsic reward" (the released code) and th
 import numpy as np
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.utils import check_bool
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 
 _VARIANTS = ("code", "paper", "supplement")
@@ -322,6 +323,7 @@ class SAEIRCallback(IntrinsicRewardCallback):
     ) -> None:
         if variant not in _VARIANTS:
             raise ValueError(f"Unknown SAEIR variant {variant!r}; choose one of {_VARIANTS}.")
+        check_bool("SAEIRCallback", reset_at_episode_start=reset_at_episode_start)
         super().__init__(coef=coef, name="intrinsic", verbose=verbose)
         self.variant = variant
         self.reset_at_episode_start = reset_at_episode_start

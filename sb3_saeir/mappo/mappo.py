@@ -6,6 +6,14 @@ chunked recurrent PPO update); :class:`~sb3_saeir.SAEIR_PPO` is MAPPO with SAEIR
 
 from __future__ import annotations
 
+import inspect
+import io
+import json
+import os
+import pathlib
+import pickle
+import warnings
+import zipfile
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
@@ -24,6 +32,7 @@ from torch.nn import functional as F
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
 from sb3_saeir.common.callbacks import episode_metric_means
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
+from sb3_saeir.common.utils import check_bool
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 from sb3_saeir.intrinsic.elign import ElignCallback
 from sb3_saeir.intrinsic.rnd import RNDCallback
@@ -115,8 +124,13 @@ _RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
     "intrinsic_coef": (lambda x: x >= 0, ">= 0 (or None for the bonus's default)"),
     "huber_delta": (lambda x: x > 0, "> 0"),
     "target_kl": (lambda x: x > 0, "> 0 (or None)"),
+    "clip_range_vf": (lambda x: x > 0 or x == VALUE_CLIPPING_OFF, "> 0, or -1 to turn value clipping off (or None)"),
+    "stats_window_size": (lambda x: x >= 1, ">= 1"),
+    "total_timesteps": (lambda x: x >= 1, ">= 1"),
 }
-_INTEGER_ARGUMENTS = ("n_steps", "n_epochs", "n_minibatches", "data_chunk_length")
+_INTEGER_ARGUMENTS = ("n_steps", "n_epochs", "n_minibatches", "data_chunk_length", "stats_window_size", "total_timesteps")
+_BOOL_ARGUMENTS = ("normalize_advantage", "normalize_values")
+VALUE_CLIPPING_OFF = -1  # the clip_range_vf that turns value clipping off
 
 
 def check_ranges(algo_name: str, **values: Any) -> None:
@@ -145,6 +159,7 @@ def check_env_argument(algo_name: str, env: Any) -> None:
     """
     if isinstance(env, VecEnv):
         check_observation_space(algo_name, env.observation_space)
+        check_action_space(algo_name, env.action_space)
     if env is None or isinstance(env, VecEnv):
         return
     example = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
@@ -185,6 +200,97 @@ def check_observation_space(algo_name: str, observation_space: spaces.Space) -> 
         "supersuit.flatten_v0(parallel_env) before make_multiagent_vec_env (images: supersuit.resize_v1 first to keep "
         "them small)."
     )
+
+
+def check_action_space(algo_name: str, action_space: spaces.Space) -> None:
+    """Reject ``Discrete`` / ``MultiDiscrete`` action spaces whose ``start`` is not 0: the policy samples actions
+    ``0 .. n - 1`` (as SB3 does), so every action the env received would be off by ``start``.
+
+    :param algo_name: class name for the message
+    :param action_space: one agent's action space, as the env declares it
+    """
+    start = getattr(action_space, "start", None)
+    if isinstance(action_space, (spaces.Discrete, spaces.MultiDiscrete)) and np.any(np.asarray(start) != 0):
+        raise ValueError(
+            f"{algo_name} needs Discrete/MultiDiscrete actions that start at 0, got {action_space} (start={start!r}): "
+            "the policy samples 0 .. n-1, so the env would get every action shifted; declare start=0 and add the "
+            "offset in the env."
+        )
+
+
+def check_intrinsic_reward(
+    algo_name: str, intrinsic_reward: Any, intrinsic_coef: float | None, intrinsic_kwargs: dict[str, Any] | None
+) -> None:
+    """Check the intrinsic-reward arguments at construction by building the callback once (unknown names and keys,
+    bad variants and kwargs given without a bonus fail here, not at ``learn``).
+
+    :param algo_name: class name for the message
+    :param intrinsic_reward: ``intrinsic_reward`` argument
+    :param intrinsic_coef: ``intrinsic_coef`` argument
+    :param intrinsic_kwargs: ``intrinsic_kwargs`` argument
+    """
+    if intrinsic_reward is None:
+        if intrinsic_kwargs:
+            raise ValueError(
+                f"{algo_name}: intrinsic_kwargs={intrinsic_kwargs!r} given with intrinsic_reward=None would be ignored; "
+                f"set intrinsic_reward (one of {sorted(INTRINSIC_REWARDS)}) or remove intrinsic_kwargs."
+            )
+        return
+    if not isinstance(intrinsic_reward, str) or intrinsic_reward not in INTRINSIC_REWARDS:
+        raise ValueError(f"Unknown intrinsic_reward {intrinsic_reward!r}; choose one of {[*INTRINSIC_REWARDS, None]}.")
+    if intrinsic_kwargs is not None and not isinstance(intrinsic_kwargs, dict):
+        raise ValueError(f"{algo_name}: intrinsic_kwargs must be a dict, got {intrinsic_kwargs!r}.")
+    _build_intrinsic_reward(algo_name, intrinsic_reward, intrinsic_coef, intrinsic_kwargs or {})
+
+
+def _build_intrinsic_reward(
+    algo_name: str, intrinsic_reward: str, intrinsic_coef: float | None, intrinsic_kwargs: dict[str, Any]
+) -> IntrinsicRewardCallback:
+    """The callback named by ``intrinsic_reward``; an unknown keyword is one ``ValueError`` naming it."""
+    bonus_class = INTRINSIC_REWARDS[intrinsic_reward]
+    coef = {} if intrinsic_coef is None else {"coef": intrinsic_coef}
+    parameters = inspect.signature(bonus_class.__init__).parameters
+    unknown = [key for key in intrinsic_kwargs if key not in parameters or key in ("self", "coef")]
+    if unknown:
+        valid = [name for name in parameters if name not in ("self", "coef", "verbose")]
+        raise ValueError(
+            f"{algo_name}: unknown intrinsic_kwargs key {unknown[0]!r} for intrinsic_reward={intrinsic_reward!r}; "
+            f"valid keys: {valid} (set the scale with intrinsic_coef)."
+        )
+    return bonus_class(**coef, **intrinsic_kwargs)  # type: ignore[arg-type]
+
+
+def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
+    """Refuse a ``tensorboard_log`` that is an existing file (SB3 would fail only at ``learn``).
+
+    :param algo_name: class name for the message
+    :param tensorboard_log: ``tensorboard_log`` argument
+    """
+    if tensorboard_log is not None and os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
+        raise ValueError(
+            f"{algo_name}: tensorboard_log={str(tensorboard_log)!r} is an existing file, not a folder; pass a folder path."
+        )
+
+
+def check_device(algo_name: str, device: Any) -> None:
+    """Refuse a device torch does not know; warn (one line) where ``"cuda"`` is asked for without CUDA, since SB3
+    then falls back to the CPU silently (the fallback is kept: SB3 users expect it).
+
+    :param algo_name: class name for the message
+    :param device: ``device`` argument
+    """
+    if isinstance(device, str) and device == "auto":
+        return
+    try:
+        torch_device = th.device(device)
+    except (RuntimeError, TypeError, ValueError):
+        raise ValueError(
+            f"{algo_name}: device={device!r} is not a torch device; use 'auto', 'cpu', 'cuda' or 'cuda:<index>'."
+        ) from None
+    if torch_device.type == "cuda" and not th.cuda.is_available():
+        warnings.warn(
+            f"{algo_name}: device={device!r} but CUDA is not available; training on the CPU.", UserWarning, stacklevel=3
+        )
 
 
 class MAPPO(OnPolicyAlgorithm):
@@ -311,7 +417,15 @@ class MAPPO(OnPolicyAlgorithm):
             intrinsic_coef=intrinsic_coef,
             huber_delta=huber_delta,
             target_kl=target_kl,
+            clip_range_vf=clip_range_vf,
+            stats_window_size=stats_window_size,
         )
+        check_bool(type(self).__name__, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
+        if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
+            check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
+        check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
+        check_tensorboard_log(type(self).__name__, tensorboard_log)
+        check_device(type(self).__name__, device)
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]
@@ -335,8 +449,6 @@ class MAPPO(OnPolicyAlgorithm):
             _init_setup_model=False,
             supported_action_spaces=(spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary),
         )
-        if intrinsic_reward is not None and intrinsic_reward not in INTRINSIC_REWARDS:
-            raise ValueError(f"Unknown intrinsic_reward {intrinsic_reward!r}; choose one of {[*INTRINSIC_REWARDS, None]}.")
         if value_loss not in ("huber", "mse"):
             raise ValueError(f"value_loss must be 'huber' or 'mse', got {value_loss!r}.")
         self.batch_size = batch_size
@@ -408,6 +520,12 @@ class MAPPO(OnPolicyAlgorithm):
     def _setup_model(self) -> None:
         if self.n_agents is None:
             raise ValueError(f"{type(self).__name__} needs an env (make_multiagent_vec_env) or a loaded n_agents.")
+        if self.env is not None and self._check_env(self.env) != self.n_agents:
+            # load(path, env) of a model onto games of another size (set_env refuses the same env)
+            raise ValueError(
+                f"{type(self).__name__}: the model was built for {self.n_agents} agents per game, the env has "
+                f"{self._check_env(self.env)}; pass an env with {self.n_agents} agents per game."
+            )
         self._setup_lr_schedule()
         self.set_random_seed(self.seed)
         self.policy_kwargs = {**self.policy_kwargs, "n_agents": self.n_agents, "normalize_values": self.normalize_values}
@@ -469,8 +587,10 @@ class MAPPO(OnPolicyAlgorithm):
         if self.intrinsic_reward is not None:
             bonus_class = INTRINSIC_REWARDS[self.intrinsic_reward]
             if not any(isinstance(c, bonus_class) for c in callbacks):
-                coef = {} if self.intrinsic_coef is None else {"coef": self.intrinsic_coef}
-                callbacks.append(bonus_class(**coef, **self.intrinsic_kwargs))  # type: ignore[arg-type]
+                name = type(self).__name__
+                callbacks.append(
+                    _build_intrinsic_reward(name, self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs)
+                )
         self._intrinsic_rewards = [c for c in callbacks if isinstance(c, IntrinsicRewardCallback)]
         return super()._init_callback(callbacks, progress_bar)
 
@@ -676,6 +796,7 @@ class MAPPO(OnPolicyAlgorithm):
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfMAPPO:
+        check_ranges(type(self).__name__, total_timesteps=total_timesteps)
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
@@ -684,6 +805,40 @@ class MAPPO(OnPolicyAlgorithm):
             reset_num_timesteps=reset_num_timesteps,
             progress_bar=progress_bar,
         )
+
+    @classmethod
+    def load(  # type: ignore[override]
+        cls: type[SelfMAPPO],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfMAPPO:
+        """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``), the env's
+        ``n_agents`` checked against the model's (as :meth:`set_env`), and one line for a file that is not a complete
+        model zip."""
+        name = cls.__name__
+        overrides = {**(custom_objects or {}), **kwargs}
+        # rl-zoo3's enjoy loads for inference with custom_objects={"learning_rate": 0.0, ...}: no training, no check
+        inference_only = {"learning_rate"} if (custom_objects or {}).get("learning_rate") == 0.0 else set()
+        checked = {key: value for key, value in overrides.items() if key in _RANGES and key not in inference_only}
+        check_ranges(name, **checked)
+        check_bool(name, **{key: value for key, value in overrides.items() if key in _BOOL_ARGUMENTS})
+        check_device(name, device)
+        if env is not None:
+            check_env_argument(name, env)
+        try:
+            return super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
+        except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
+            raise _incomplete_model_error(name, path, error) from None
+        except ValueError as error:
+            # SB3's own ValueErrors for a damaged zip; ours (n_agents, ranges) pass through
+            if isinstance(error, json.JSONDecodeError) or "Names of parameters do not match" in str(error):
+                raise _incomplete_model_error(name, path, error) from None
+            raise
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards"]
@@ -694,6 +849,15 @@ class MAPPO(OnPolicyAlgorithm):
             raise ValueError(f"The model was built for {self.n_agents} agents per game, the env has {n_agents}.")
         super().set_env(env, force_reset)
         self._last_states = None
+
+
+def _incomplete_model_error(algo_name: str, path: Any, error: BaseException) -> ValueError:
+    """One line for a model file that SB3 could not read back (truncated or edited zip)."""
+    detail = str(error).splitlines()[0] if str(error) else "no detail"
+    return ValueError(
+        f"{algo_name}.load: {str(path)!r} is not a complete sb3-saeir model zip ({type(error).__name__}: {detail}); "
+        "save the model again with model.save."
+    )
 
 
 def _flatten_callbacks(callback: MaybeCallback) -> list[BaseCallback]:

@@ -1,0 +1,274 @@
+"""Bad input to the Python API (issue 24, part A): refused early with one line naming the argument.
+
+Kinds: serious ones (load onto games of another size, the 2-agent MSHG default, string booleans), silent acceptance,
+late errors made early, raw library errors replaced by one line.
+"""
+
+from __future__ import annotations
+
+import warnings
+import zipfile
+from functools import partial
+
+import numpy as np
+import pytest
+from gymnasium import spaces
+
+from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.intrinsic.saeir import SAEIRCallback
+from tests.toy_envs import ToyMeetEnv
+
+
+def one_line(error: pytest.ExceptionInfo, *words: str) -> None:
+    message = str(error.value)
+    assert "\n" not in message, message
+    for word in words:
+        assert word in message, message
+
+
+# ------------------------------------------------------------------------------------------------ serious ones
+@pytest.mark.parametrize("algo", [SAEIR_PPO, MAPPO])
+def test_load_onto_games_of_another_size(tiny_kwargs, tmp_path, algo):
+    """Same observation space, 6 agents per game: before, the model trained as if each game were two 3-agent games."""
+    path = tmp_path / "model.zip"
+    three = make_multiagent_vec_env(partial(ToyMeetEnv, n_agents=3), n_games=4, seed=0)
+    algo("MlpPolicy", three, **tiny_kwargs).save(path)
+    six = make_multiagent_vec_env(partial(ToyMeetEnv, n_agents=6), n_games=2, seed=0)
+    assert six.observation_space == three.observation_space and six.num_envs == three.num_envs
+    with pytest.raises(ValueError) as error:
+        algo.load(path, env=six)
+    three.close()
+    six.close()
+    one_line(error, "3 agents per game", "6")
+
+
+def test_mshg_default_trains_on_two_agents(tiny_kwargs):
+    two = make_multiagent_vec_env("cn-sparse-n3", n_games=2, N=2, seed=0)
+    with pytest.warns(UserWarning, match="group scale is left out"):
+        model = SAEIR_PPO("MSHGPolicy", two, **tiny_kwargs)
+    assert model.policy.scales == ("team", "individual")
+    model.learn(40)
+    two.close()
+
+
+def test_mshg_explicit_group_scale_on_two_agents_still_errors(tiny_kwargs):
+    two = make_multiagent_vec_env("cn-sparse-n3", n_games=2, N=2, seed=0)
+    kwargs = {**tiny_kwargs, "policy_kwargs": {"hidden_size": 8, "scales": ("team", "group", "individual")}}
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", two, **kwargs)
+    two.close()
+    one_line(error, "group_size=2 must be smaller")
+
+
+STRING_BOOLEANS = [
+    ("algo", "normalize_advantage"),
+    ("algo", "normalize_values"),
+    ("policy", "recurrent_actor"),
+    ("policy", "normalize_values"),
+    ("policy", "critic_gumbel_noise"),
+    ("policy", "ortho_init"),
+    ("intrinsic", "reset_at_episode_start"),
+]
+
+
+@pytest.mark.parametrize("where, name", STRING_BOOLEANS, ids=[f"{w}-{n}" for w, n in STRING_BOOLEANS])
+@pytest.mark.parametrize("value", ["no", "False"])
+def test_string_boolean_refused(env, tiny_kwargs, where, name, value):
+    kwargs = dict(tiny_kwargs)
+    if where == "algo":
+        kwargs[name] = value
+    elif where == "policy":
+        kwargs["policy_kwargs"] = {"hidden_size": 8, name: value}
+    else:
+        kwargs["intrinsic_kwargs"] = {name: value}
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, **kwargs)
+    one_line(error, name, "must be True or False")
+
+
+def test_string_boolean_refused_by_callback():
+    with pytest.raises(ValueError) as error:
+        SAEIRCallback(reset_at_episode_start="no")
+    one_line(error, "reset_at_episode_start", "must be True or False")
+
+
+# ------------------------------------------------------------------------------------------------ silent acceptance
+BAD_CONSTRUCTOR = [
+    ({"clip_range_vf": -0.5}, "clip_range_vf=-0.5 is out of range"),
+    ({"clip_range_vf": 0.0}, "clip_range_vf=0.0 is out of range"),
+    ({"normalize_advantage": 1}, "normalize_advantage must be True or False"),
+    ({"normalize_advantage": None}, "normalize_advantage must be True or False"),
+    ({"stats_window_size": 0}, "stats_window_size=0 is out of range"),
+    ({"stats_window_size": -3}, "stats_window_size=-3 is out of range"),
+    ({"intrinsic_reward": None, "intrinsic_kwargs": {"variant": "paper"}}, "would be ignored"),
+]
+
+
+@pytest.mark.parametrize("kwargs, message", BAD_CONSTRUCTOR, ids=[m for _, m in BAD_CONSTRUCTOR])
+def test_silent_constructor_argument_refused(env, tiny_kwargs, kwargs, message):
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, **{**tiny_kwargs, **kwargs})
+    one_line(error, message)
+
+
+def test_value_clipping_off_value_accepted(env, tiny_kwargs):
+    SAEIR_PPO("MSHGPolicy", env, clip_range_vf=-1, **tiny_kwargs).learn(20)
+
+
+@pytest.mark.parametrize("total_timesteps", [0, -5, 2.5, "100"])
+def test_learn_needs_positive_integer(env, tiny_kwargs, tmp_path, total_timesteps):
+    model = SAEIR_PPO("MSHGPolicy", env, tensorboard_log=str(tmp_path / "tb"), **tiny_kwargs)
+    with pytest.raises(ValueError) as error:
+        model.learn(total_timesteps)
+    one_line(error, "total_timesteps")
+    assert not (tmp_path / "tb").exists()
+    assert model.num_timesteps == 0
+
+
+LOAD_OVERRIDES = [
+    ("kwargs", {"gamma": 1.5}, "gamma=1.5 is out of range"),
+    ("kwargs", {"n_epochs": 0}, "n_epochs=0 is out of range"),
+    ("kwargs", {"normalize_advantage": "no"}, "normalize_advantage must be True or False"),
+    ("custom_objects", {"learning_rate": -1.0}, "learning_rate=-1.0 is out of range"),
+    ("custom_objects", {"clip_range_vf": -0.3}, "clip_range_vf=-0.3 is out of range"),
+]
+
+
+@pytest.mark.parametrize("how, overrides, message", LOAD_OVERRIDES, ids=[m for _, _, m in LOAD_OVERRIDES])
+def test_load_overrides_are_range_checked(env, tiny_kwargs, tmp_path, how, overrides, message):
+    path = tmp_path / "model.zip"
+    SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).save(path)
+    with pytest.raises(ValueError) as error:
+        if how == "kwargs":
+            SAEIR_PPO.load(path, env=env, **overrides)
+        else:
+            SAEIR_PPO.load(path, env=env, custom_objects=overrides)
+    one_line(error, message)
+
+
+def test_load_for_inference_with_learning_rate_zero(env, tiny_kwargs, tmp_path):
+    """rl-zoo3's enjoy loads with custom_objects={"learning_rate": 0.0, ...} (no training): that stays allowed."""
+    path = tmp_path / "model.zip"
+    SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).save(path)
+    custom_objects = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
+    assert SAEIR_PPO.load(path, env=env, custom_objects=custom_objects).learning_rate == 0.0
+    with pytest.raises(ValueError, match=r"learning_rate=0\.0 is out of range"):
+        SAEIR_PPO.load(path, env=env, learning_rate=0.0)  # a training override keeps the constructor's check
+
+
+@pytest.mark.parametrize("space", [spaces.Discrete(5, start=1), spaces.MultiDiscrete([3, 3], start=[0, -1])])
+def test_action_space_with_nonzero_start_refused(env, tiny_kwargs, space):
+    env.action_space = space
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs)
+    one_line(error, "start", "actions")
+
+
+# ------------------------------------------------------------------------------------------------ late errors made early
+LATE = [
+    ({"intrinsic_kwargs": {"variant": "papper"}}, "Unknown SAEIR variant 'papper'"),
+    ({"intrinsic_kwargs": {"varaint": "paper"}}, "unknown intrinsic_kwargs key 'varaint'"),
+    ({"intrinsic_reward": "rnd", "intrinsic_kwargs": {"input": "pixels"}}, "Unknown RND input 'pixels'"),
+    ({"intrinsic_reward": "elign", "intrinsic_kwargs": {"coef": 2.0}}, "unknown intrinsic_kwargs key 'coef'"),
+]
+
+
+@pytest.mark.parametrize("kwargs, message", LATE, ids=[m for _, m in LATE])
+def test_intrinsic_reward_checked_at_construction(env, tiny_kwargs, kwargs, message):
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, **{**tiny_kwargs, **kwargs})
+    one_line(error, message)
+
+
+def test_tensorboard_log_that_is_a_file(env, tiny_kwargs, tmp_path):
+    log_file = tmp_path / "tb"
+    log_file.write_text("not a folder")
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, tensorboard_log=str(log_file), **tiny_kwargs)
+    one_line(error, "tensorboard_log", "is an existing file")
+    assert log_file.read_text() == "not a folder" and sorted(tmp_path.iterdir()) == [log_file]
+
+
+# ------------------------------------------------------------------------------------------------ raw library errors
+@pytest.fixture
+def model(env, tiny_kwargs):
+    return SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs)
+
+
+BAD_PREDICT = [
+    ({"observation": np.zeros((6, 5))}, "observation of shape (6, 5)"),
+    ({"observation": np.zeros(7)}, "observation of shape (7,)"),
+    ({"observation": [[0.0] * 18, [0.0]]}, "observation must be an array"),
+    ({"observation": np.full((6, 18), np.nan)}, "observation holds NaN"),
+    ({"observation": np.full(18, np.inf)}, "observation holds NaN"),
+    ({"observation": np.zeros((6, 18)), "state": np.zeros((6, 5))}, "state of shape (6, 5)"),
+    ({"observation": np.zeros((6, 18)), "state": np.zeros((4, 8))}, "state of shape (4, 8)"),
+    ({"observation": np.zeros((6, 18)), "episode_start": np.zeros(4)}, "episode_start of shape (4,)"),
+]
+
+
+@pytest.mark.parametrize("kwargs, message", BAD_PREDICT, ids=[m for _, m in BAD_PREDICT])
+def test_predict_bad_arrays(model, kwargs, message):
+    assert model.observation_space.shape == (18,)
+    with pytest.raises(ValueError) as error:
+        model.predict(**kwargs)
+    one_line(error, "predict", message)
+
+
+def _truncate(path):
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def _edit_data(path):
+    with zipfile.ZipFile(path) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    members["data"] = members["data"][:-40]
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+
+
+def _drop_policy(path):
+    with zipfile.ZipFile(path) as archive:
+        members = {name: archive.read(name) for name in archive.namelist() if name != "policy.pth"}
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+
+
+def _garble_policy(path):
+    with zipfile.ZipFile(path) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    members["policy.pth"] = members["policy.pth"][: len(members["policy.pth"]) // 2]
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+
+
+@pytest.mark.parametrize("damage", [_truncate, _edit_data, _drop_policy, _garble_policy])
+def test_load_damaged_zip(env, tiny_kwargs, tmp_path, damage):
+    path = tmp_path / "model.zip"
+    SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).save(path)
+    damage(path)
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO.load(path, env=env)
+    one_line(error, str(path), "not a complete sb3-saeir model")
+
+
+@pytest.mark.parametrize("device", ["gpu2", "cuda:x", "tpu"])
+def test_unknown_device(env, tiny_kwargs, device):
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, device=device, **tiny_kwargs)
+    one_line(error, f"device={device!r}")
+
+
+def test_cuda_without_cuda_warns(env, tiny_kwargs, monkeypatch):
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        SAEIR_PPO("MSHGPolicy", env, device="cuda", **tiny_kwargs)
+    messages = [str(w.message) for w in caught if "CUDA is not available" in str(w.message)]
+    assert len(messages) == 1 and "\n" not in messages[0] and "device='cuda'" in messages[0]

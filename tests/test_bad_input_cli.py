@@ -1,0 +1,324 @@
+"""Bad inputs of the command lines and configs (issue 24, part B): each refused before anything is built or written,
+as one ``error:`` line naming the option, exit status 2, and the folders left byte for byte as they were.
+
+Kinds: late errors (settings that failed only at the first evaluation, save or ``learn()``), raw library errors,
+silent acceptance, and the serious ones (``5e-4`` read as a string, a model of another method, repeated seeds).
+"""
+
+import hashlib
+from pathlib import Path
+
+import pytest
+import yaml
+
+from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.benchmark import main as benchmark_main
+from sb3_saeir.benchmark import parse_seeds
+from sb3_saeir.config import ConfigError, load_hyperparams, parse_params
+from sb3_saeir.enjoy import main as enjoy_main
+from sb3_saeir.train import main as train_main
+from sb3_saeir.zoo import main as zoo_main
+
+TASK = "cn-sparse-n3"
+TRAIN = ["--algo", "saeir_ppo", "--n-games", "2", "-n", "100", "--eval-freq", "0", "--verbose", "0"]
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file and folder under ``folder`` with a hash of its bytes (folders: ``"dir"``)."""
+    return {
+        str(path.relative_to(folder)): "dir" if path.is_dir() else hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in sorted(folder.rglob("*"))
+    }
+
+
+def run(main, argv) -> int:
+    """Exit status of a command line (argparse errors raise ``SystemExit``)."""
+    try:
+        return main(argv)
+    except SystemExit as exit_:
+        return int(exit_.code or 0)
+
+
+def assert_refused(main, argv, message, capsys, root: Path) -> None:
+    """``argv`` exits 2 with one ``error:`` line holding ``message`` and leaves ``root`` unchanged."""
+    before = snapshot(root)
+    status = run(main, argv)
+    err = capsys.readouterr().err.strip()
+    assert status == 2, err[-2000:]
+    assert "\n" not in err and ": error: " in err, err[-2000:]
+    assert message in err, err
+    assert snapshot(root) == before
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory):
+    """A tiny saved SAEIR_PPO and MAPPO model of cn-sparse-n3 (outside every log folder)."""
+    folder = tmp_path_factory.mktemp("models")
+    env = make_multiagent_vec_env(TASK, n_games=1, seed=0)
+    SAEIR_PPO("MSHGPolicy", env, n_steps=10, policy_kwargs=dict(hidden_size=8)).save(folder / "saeir.zip")
+    MAPPO("MAPPOPolicy", env, n_steps=10, policy_kwargs=dict(hidden_size=8)).save(folder / "mappo.zip")
+    env.close()
+    return folder
+
+
+@pytest.fixture
+def root(tmp_path, monkeypatch):
+    """A working folder (the current directory) holding a user's run that bad commands must leave untouched."""
+    run_folder = tmp_path / "logs" / "saeir_ppo" / f"{TASK}_1"
+    run_folder.mkdir(parents=True)
+    (run_folder / f"{TASK}.zip").write_bytes(b"a model the user saved")
+    (tmp_path / "a_file").write_text("not a folder")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def conf_with(root: Path, algo: str = "saeir_ppo", text: str = "", **changes) -> str:
+    """A user's config file: the packaged entry of ``TASK`` with ``changes``, or ``text`` as given."""
+    path = root / "my_config.yml"
+    if not text:
+        text = yaml.safe_dump({TASK: {**load_hyperparams(algo, TASK), **changes}})
+    path.write_text(text)
+    return str(path)
+
+
+# ------------------------------------------------------------------------------------------------ serious ones
+RL_ZOO_NUMBERS = [("5e-4", 5e-4), ("1e6", 1e6), ("1.5E-3", 1.5e-3), ("-1e-2", -1e-2), ("3e7", 3e7), ("+2E+3", 2e3)]
+
+
+@pytest.mark.parametrize("text, value", RL_ZOO_NUMBERS, ids=[t for t, _ in RL_ZOO_NUMBERS])
+def test_numbers_as_rl_zoo_users_write_them_parse_everywhere(tmp_path, text, value):
+    from sb3_saeir.config import load_yaml
+
+    assert parse_params([f"learning_rate:{text}"]) == {"learning_rate": value}  # train and benchmark -params
+    conf = tmp_path / "conf.yml"
+    conf.write_text(f"{TASK}:\n  learning_rate: {text}\n  n_timesteps: {text}\n")
+    entry = load_hyperparams("mappo", TASK, conf)  # user -conf files and the packaged configs
+    assert entry == {"learning_rate": value, "n_timesteps": value} and isinstance(entry["learning_rate"], float)
+    assert load_yaml("[1, 1.0, abc, 1e, e5]") == [1, 1.0, "abc", "1e", "e5"]  # the rest unchanged
+
+
+def test_documented_learning_rate_override_is_accepted(root, capsys, monkeypatch):
+    """``-params learning_rate:5e-4`` (docs/guide/training.md) gets past every config check: the command stops only
+    at the missing ``-i`` file, checked after the config."""
+    argv = [*TRAIN, "-f", "logs", "-params", "learning_rate:5e-4", "n_timesteps:1e2", "-i", "missing.zip"]
+    assert_refused(train_main, argv, "--trained-agent missing.zip is not a file", capsys, root)
+
+
+@pytest.mark.parametrize(
+    "algo, model, message",
+    [
+        (
+            "saeir_ppo",
+            "mappo.zip",
+            "is a model with MAPPOPolicy and intrinsic_reward=None (a model of mappo; use --algo mappo)",
+        ),
+        ("mappo", "saeir.zip", "is a model with MSHGPolicy and intrinsic_reward='saeir' (a model of saeir_ppo"),
+        ("mshg_only", "saeir.zip", "not one of mshg_only (MSHGPolicy, intrinsic_reward=None)"),
+    ],
+)
+def test_trained_agent_of_another_method_is_refused(root, models, capsys, algo, model, message):
+    argv = [*TRAIN[2:], "--algo", algo, "-f", "logs", "-i", str(models / model)]
+    assert_refused(train_main, argv, message, capsys, root)
+
+
+@pytest.mark.parametrize("algo, model", [("saeir_ppo", "mappo.zip"), ("mappo", "saeir.zip")])
+def test_enjoy_of_another_method_is_refused(root, models, capsys, algo, model):
+    argv = ["--algo", algo, "--model", str(models / model), "-n", "1", "--n-games", "1"]
+    assert_refused(enjoy_main, argv, f"--algo {algo}: {models / model} is a model with", capsys, root)
+
+
+SEEDS = [
+    ("1,1", "gives seed(s) [1] more than once"),
+    ("1-3,2", "gives seed(s) [2] more than once"),
+    ("3-1", "the range 3-1 is empty"),
+    ("a", "'a' is not a seed or a range"),
+    ("1-", "'1-' is not a seed or a range"),
+    (",", "gives no seed"),
+]
+
+
+@pytest.mark.parametrize("seeds, message", SEEDS, ids=[s for s, _ in SEEDS])
+def test_bad_benchmark_seeds(root, capsys, seeds, message):
+    with pytest.raises(ConfigError, match="--seeds"):
+        parse_seeds(seeds)
+    argv = ["--algos", "mappo", "--seeds", seeds, "-n", "100", "--eval-freq", "50", "--out", "bench", "--report-only"]
+    assert_refused(benchmark_main, argv, message, capsys, root)
+
+
+def test_parse_seeds_still_reads_ranges_and_lists():
+    assert parse_seeds("1-3") == [1, 2, 3] and parse_seeds("1,3,7") == [1, 3, 7] and parse_seeds("-2--1,5,") == [-2, -1, 5]
+
+
+# ------------------------------------------------------------------------------------------------ late errors
+LATE_TRAIN = [
+    (["--eval-freq", "50", "--eval-episodes", "0"], "--eval-episodes must be >= 1, got 0"),
+    (["--eval-freq", "50", "--eval-episodes", "-3"], "--eval-episodes must be >= 1, got -3"),
+    (["-conf", {"intrinsic_kwargs": "dict(variant='bogus')"}], "Unknown SAEIR variant 'bogus'"),
+    (["-conf", {"callback": "my.missing.Callback"}], "callback 'my.missing.Callback' does not import"),
+    (
+        ["-conf", {"callback": [{"sb3_saeir.common.callbacks.EveryAgentSteps": {"x": 1}}]}],
+        "callback 'sb3_saeir.common.callbacks.EveryAgentSteps': EveryAgentSteps.__init__() got an unexpected",
+    ),
+    (["-tb", "a_file"], "-tb/--tensorboard-log a_file is a file"),
+    (["-params", "tensorboard_log:a_file"], "tensorboard_log a_file is a file"),
+    (["-f", "a_file/logs"], "-f/--log-folder a_file/logs: a_file is a file"),
+    (["-f", "a_file"], "-f/--log-folder a_file is a file"),
+]
+
+
+@pytest.mark.parametrize("extra, message", LATE_TRAIN, ids=[m[:40] for _, m in LATE_TRAIN])
+def test_late_errors_of_the_train_command(root, capsys, extra, message):
+    """Each of these used to fail at the first evaluation, save or learn(), after the run folder was made."""
+    extra = [conf_with(root, **item) if isinstance(item, dict) else item for item in extra]
+    argv = [*TRAIN, *extra] if "-f" in extra else [*TRAIN, "-f", "logs", *extra]
+    assert_refused(train_main, argv, message, capsys, root)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--gif", "."], "--gif '.' is not a file name"),
+        (["--gif", "missing/replay.gif"], "--gif missing/replay.gif: the folder missing does not exist"),
+        (["--gif", "a_file/replay.gif"], "the folder a_file does not exist"),
+    ],
+)
+def test_enjoy_gif_path_is_checked_before_the_evaluation(root, models, capsys, extra, message):
+    argv = ["--algo", "saeir_ppo", "--model", str(models / "saeir.zip"), "-n", "1", "--n-games", "1", *extra]
+    assert_refused(enjoy_main, argv, message, capsys, root)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--out", "a_file"], "--out a_file is a file"),
+        (["-params", "gamma:1.5"], "cannot build mappo on cn-sparse-n3 with these settings"),
+        (["-params", "intrinsic_reward:saeir", "intrinsic_kwargs:dict(variant='bogus')"], "Unknown SAEIR variant"),
+    ],
+)
+def test_benchmark_refuses_before_any_run_folder(root, capsys, extra, message):
+    argv = ["--algos", "mappo", "--seeds", "1", "-n", "100", "--eval-freq", "50", "--n-games", "2", "--out", "bench"]
+    assert_refused(benchmark_main, [*argv, *extra], message, capsys, root)
+
+
+# ------------------------------------------------------------------------------------------------ raw library errors
+RAW_TRAIN = [
+    (["-n", "2.5"], "argument -n/--n-timesteps: '2.5' is not a whole number"),
+    (["--n-games", "x"], "argument --n-games: invalid integer 'x'"),
+    (["--eval-freq", "ten"], "argument --eval-freq: invalid integer 'ten'"),
+    (["--device", "gpu2"], "--device 'gpu2' is not a torch device"),
+    (["--num-threads", "-2"], "--num-threads must be >= 0"),
+    (["--optimize", "--n-trials", "1", "--storage", "foo://x"], "--storage 'foo://x' is not a database URL"),
+    (["--optimize", "--n-trials", "1", "--n-evaluations", "0"], "--n-evaluations must be >= 1, got 0"),
+    (["--optimize", "--n-jobs", "0"], "--n-jobs must be >= 1"),
+]
+
+
+@pytest.mark.parametrize("extra, message", RAW_TRAIN, ids=[m[:40] for _, m in RAW_TRAIN])
+def test_raw_library_errors_of_train(root, capsys, extra, message):
+    assert_refused(train_main, [*TRAIN, "-f", "logs", *extra], message, capsys, root)
+
+
+BAD_CONFIG_VALUES = [
+    ({"text": f"{TASK}:\n  n_steps: 10\n  n_steps: 20\n"}, "duplicate key 'n_steps' (line 3)"),
+    ({"normalize_advantage": "no"}, "normalize_advantage='no' has type str"),
+    ({"n_epochs": 2.5}, "n_epochs=2.5 has type float"),
+]
+
+
+@pytest.mark.parametrize("changes, message", BAD_CONFIG_VALUES, ids=[m[:40] for _, m in BAD_CONFIG_VALUES])
+def test_config_file_values_are_checked_like_params(root, capsys, changes, message):
+    assert_refused(train_main, [*TRAIN, "-f", "logs", "-conf", conf_with(root, **changes)], message, capsys, root)
+
+
+def test_a_params_key_given_twice_is_refused(root, capsys):
+    argv = [*TRAIN, "-f", "logs", "-params", "n_steps:10", "n_steps:20"]
+    assert_refused(train_main, argv, "-params n_steps is given twice", capsys, root)
+
+
+RAW_ENJOY = [
+    (["-n", "0"], "-n/--n-episodes must be >= 1, got 0"),
+    (["--n-games", "-1"], "--n-games must be >= 1, got -1"),
+    (["--gif-episodes", "0", "--gif", "r.gif"], "--gif-episodes must be >= 1"),
+    (["--n-games", "1.5"], "argument --n-games: '1.5' is not a whole number"),
+    (["--task", "cn-sparse-n9"], "unknown task 'cn-sparse-n9'"),
+]
+
+
+@pytest.mark.parametrize("extra, message", RAW_ENJOY, ids=[m[:40] for _, m in RAW_ENJOY])
+def test_raw_library_errors_of_enjoy(root, models, capsys, extra, message):
+    argv = ["--algo", "saeir_ppo", "--model", str(models / "saeir.zip"), *extra]
+    assert_refused(enjoy_main, argv, message, capsys, root)
+
+
+def test_enjoy_of_a_file_that_is_no_model(root, capsys):
+    (root / "notes.zip").write_text("not a model")
+    argv = ["--algo", "saeir_ppo", "--model", "notes.zip", "-n", "1"]
+    assert_refused(enjoy_main, argv, "cannot load saeir_ppo from notes.zip", capsys, root)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [(["--n-games", "2.5"], "argument --n-games: '2.5' is not a whole number"), (["--jobs", "x"], "argument --jobs")],
+)
+def test_raw_library_errors_of_benchmark(root, capsys, extra, message):
+    argv = ["--algos", "mappo", "--seeds", "1", "-n", "100", "--out", "bench", *extra]
+    assert_refused(benchmark_main, argv, message, capsys, root)
+
+
+def test_count_options_take_rl_zoo_numbers():
+    from sb3_saeir.config import count
+
+    assert count("100") == 100 and count("1e6") == 1_000_000 and count("2.5e5") == 250_000
+
+
+# ------------------------------------------------------------------------------------------------ silent acceptance
+SILENT_TRAIN = [
+    (["-f", ""], "-f/--log-folder is empty"),
+    (["-f", "logs", "--eval-freq", "-5"], "--eval-freq must be >= 0 (0: never), got -5"),
+    (["-f", "logs", "--save-freq", "-7"], "--save-freq must be >= -1"),
+    (["-f", "logs", "--optimize", "--n-trials", "0"], "--n-trials must be >= 1, got 0"),
+]
+
+
+@pytest.mark.parametrize("extra, message", SILENT_TRAIN, ids=[m[:40] for _, m in SILENT_TRAIN])
+def test_silently_accepted_train_options(root, capsys, extra, message):
+    """Each of these used to train (or start a study) without a word."""
+    assert_refused(train_main, [*TRAIN, *extra], message, capsys, root)
+
+
+def test_device_cuda_without_cuda_is_refused(root, capsys):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has CUDA")
+    assert_refused(train_main, [*TRAIN, "-f", "logs", "--device", "cuda"], "no CUDA device is available", capsys, root)
+
+
+def test_python_level_sizes_are_checked(env):
+    from sb3_saeir.common.callbacks import EveryAgentSteps
+    from sb3_saeir.evaluation import MultiAgentEvalCallback
+    from sb3_saeir.experiment import Experiment
+
+    for kwargs in (dict(n_games=2.5), dict(n_games=0), dict(num_cpus=-1), dict(n_games=True)):
+        with pytest.raises(ValueError, match=next(iter(kwargs))):
+            Experiment("mappo", TASK, **kwargs)
+    for kwargs in (dict(n_eval_episodes=0), dict(n_eval_episodes=-2), dict(n_eval_episodes=2.5), dict(eval_freq=-1)):
+        with pytest.raises(ValueError, match=next(iter(kwargs))):
+            MultiAgentEvalCallback(env, **kwargs)
+    with pytest.raises(ValueError, match="frequency"):
+        EveryAgentSteps(MultiAgentEvalCallback(env), 2.5)
+
+
+def test_zoo_train_refuses_duplicate_keys(root, capsys):
+    conf = conf_with(root, text=f"{TASK}:\n  n_envs: 2\n  n_timesteps: 60\n  n_steps: 10\n  n_steps: 20\n")
+    argv = ["train", "--algo", "mappo", "--env", TASK, "--conf-file", conf, "-f", "logs", "--device", "cpu"]
+    assert_refused(zoo_main, [*argv, "--num-threads", "1"], "duplicate key 'n_steps' (line 5)", capsys, root)
+
+
+# ------------------------------------------------------------------------------------------------ ETA line
+def test_zoo_train_prints_the_eta_line_of_train(root, capsys):
+    conf = conf_with(root, text=f"{TASK}:\n  n_envs: 2\n  n_timesteps: 120\n  n_steps: 10\n  policy: MAPPOPolicy\n")
+    argv = ["train", "--algo", "mappo", "--env", TASK, "--conf-file", conf, "-f", "zoo_logs", "--device", "cpu"]
+    assert zoo_main([*argv, "--num-threads", "1", "--seed", "0", "--eval-freq", "-1"]) == 0
+    out = capsys.readouterr().out
+    assert "First rollout and update:" in out and "the 120 agent-steps take about" in out, out[-2000:]

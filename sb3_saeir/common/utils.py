@@ -40,8 +40,13 @@ def set_num_threads(num_threads: int | None) -> int:
     return threads
 
 
+class NotABoolError(TypeError, ValueError):
+    """A boolean option given anything but ``True`` or ``False``: a wrong type and a wrong value at once, so code that
+    catches either (the algorithms' and the envs' callers) sees it."""
+
+
 def check_bool(owner: str, **values: Any) -> None:
-    """Raise a one-line ``ValueError`` naming the first boolean option that is not ``True`` or ``False``.
+    """Raise a one-line :class:`NotABoolError` naming the first boolean option that is not ``True`` or ``False``.
 
     Strings are refused on purpose: ``"no"`` and ``"False"`` are truthy and would switch the option on.
 
@@ -50,4 +55,4 @@ def check_bool(owner: str, **values: Any) -> None:
     """
     for name, value in values.items():
         if not isinstance(value, (bool, np.bool_)):
-            raise ValueError(f"{owner}: {name} must be True or False, got {value!r} ({type(value).__name__}).")
+            raise NotABoolError(f"{owner}: {name} must be True or False, got {value!r} ({type(value).__name__}).")

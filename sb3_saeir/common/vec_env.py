@@ -25,6 +25,8 @@ from pettingzoo.utils.env import AECEnv, ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
+from sb3_saeir.common.utils import check_bool
+
 ParallelEnvFactory = Callable[..., ParallelEnv]
 
 # Key under which a task env reports its per-episode metrics in ``infos[agent]`` at the last step of an episode.
@@ -178,15 +180,13 @@ def check_vec_env_options(n_games: Any, num_cpus: Any, mark_truncation: Any, che
     :param mark_truncation: a bool
     :param check_finite: a bool
     :raises ValueError: for a bad size
-    :raises TypeError: for a non-bool flag
+    :raises ~sb3_saeir.common.utils.NotABoolError: for a non-bool flag (a ``TypeError`` and a ``ValueError``)
     """
     if isinstance(n_games, bool) or not isinstance(n_games, (int, np.integer)) or n_games < 1:
         raise ValueError(f"n_games must be a positive integer (number of game copies), got {n_games!r}.")
     if isinstance(num_cpus, bool) or not isinstance(num_cpus, (int, np.integer)) or num_cpus < 0:
         raise ValueError(f"num_cpus must be an integer >= 0 (0: every game in this process), got {num_cpus!r}.")
-    for name, value in (("mark_truncation", mark_truncation), ("check_finite", check_finite)):
-        if not isinstance(value, (bool, np.bool_)):
-            raise TypeError(f"{name} must be True or False, got {value!r} ({type(value).__name__}); pass a bool.")
+    check_bool("make_multiagent_vec_env", mark_truncation=mark_truncation, check_finite=check_finite)
 
 
 def check_action_space(action_space: spaces.Space) -> None:

@@ -42,8 +42,9 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 from pettingzoo.utils.env import ParallelEnv
 
+from sb3_saeir.common.utils import check_bool
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY
-from sb3_saeir.envs.navigation_core import check_bool, check_positive_int
+from sb3_saeir.envs.navigation_core import check_positive_int
 
 OBSERVATION_SIZE = 115  # simple115v2
 N_ACTIONS = 19  # gfootball's default action set
@@ -128,7 +129,7 @@ class FootballEnv(ParallelEnv, EzPickle):
             other_config_options=other_config_options,
         )
         check_positive_int("N", N)
-        check_bool("share_reward", share_reward)
+        check_bool(type(self).__name__, share_reward=share_reward)
         if render_mode is not None:
             raise ValueError(f"render_mode={render_mode!r} is not supported by the football tasks (only None).")
         football_env = import_gfootball()

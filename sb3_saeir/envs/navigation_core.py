@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 from gymnasium.utils import seeding
 
+from sb3_saeir.common.utils import check_bool
+
 WORLDS = ("mpe", "mpe2")
 REWARDS = ("occupancy", "reach")
 
@@ -70,17 +72,6 @@ def check_positive_int(name: str, value: Any) -> None:
     """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {value!r}; pass a whole number such as {name}=3.")
-
-
-def check_bool(name: str, value: Any) -> None:
-    """Refuse non-bool values of a boolean option (``"no"`` would be true), naming ``name``.
-
-    :param name: the option, for the message
-    :param value: its value
-    :raises TypeError: with one line naming the option
-    """
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {value!r} ({type(value).__name__}); pass a bool.")
 
 
 def check_finite_option(name: str, value: Any) -> None:
@@ -200,7 +191,7 @@ class NavigationCore:
         check_positive_int("n_games", n_games)
         check_positive_int("N", N)
         check_positive_int("max_cycles", max_cycles)
-        check_bool("continuous_actions", continuous_actions)
+        check_bool(type(self).__name__, continuous_actions=continuous_actions)
         check_finite_option("cover_radius", cover_radius)
         check_finite_option("collision_penalty", collision_penalty)
         if not cover_radius > 0:

@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from sb3_saeir.common.utils import check_bool
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv
 from sb3_saeir.common.vec_env import check_finite as check_finite_values
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation, navigation_spaces
@@ -28,7 +29,6 @@ from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
     COVER_RADIUS,
     NavigationCore,
-    check_bool,
     check_finite_option,
     check_positive_int,
 )
@@ -144,8 +144,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
         check_finite: bool = True,
     ) -> None:
         check_positive_int("n_games", n_games)
-        check_bool("mark_truncation", mark_truncation)
-        check_bool("check_finite", check_finite)
+        check_bool(type(self).__name__, mark_truncation=mark_truncation, check_finite=check_finite)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}.")
         self.core = NavigationCore(

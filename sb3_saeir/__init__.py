@@ -3,6 +3,9 @@
 from pathlib import Path as _Path
 
 from sb3_saeir.common.vec_env import MultiAgentVecEnv, make_multiagent_vec_env
+
+# Importing sb3_saeir.envs registers the package's tasks into sb3_saeir.common.registry. Importing any sb3_saeir module
+# runs this file first, so they are registered before any code can look a task up.
 from sb3_saeir.envs import list_tasks, make_task, register_task
 from sb3_saeir.mappo import MAPPO, MAPPOPolicy, SNMAPPOPolicy
 from sb3_saeir.saeir_ppo import SAEIR_PPO, MSHGPolicy

@@ -11,6 +11,7 @@ from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback, EventCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_saeir.common.run_state import resumable_env
 from sb3_saeir.common.vec_env import is_multiagent_vec_env
 
 
@@ -222,6 +223,34 @@ class MultiAgentEvalCallback(EventCallback):
             if self.callback is not None:
                 return self.callback.on_step()
         return True
+
+    def get_resume_state(self) -> dict[str, Any]:
+        """What the next evaluations depend on: the records so far, the best score, when the last evaluation was, and
+        the eval env's state when it can save it (see :mod:`sb3_saeir.common.run_state`).
+
+        :return: a dict for :meth:`set_resume_state`
+        """
+        env = resumable_env(self.eval_env)
+        return {
+            "best_score": self.best_score,
+            "last_eval_timestep": self.last_eval_timestep,
+            "history": copy.deepcopy(self.history),
+            "timesteps": list(self.timesteps),
+            "last_summary": dict(self.last_summary),
+            "eval_env": env.get_resume_state() if env is not None else None,
+        }
+
+    def set_resume_state(self, state: dict[str, Any]) -> None:
+        """Go back to the state of :meth:`get_resume_state` (an eval env that cannot take its state back keeps its own:
+        the evaluations after the resume then play other episodes than uninterrupted ones would)."""
+        self.best_score = state["best_score"]
+        self.last_eval_timestep = state["last_eval_timestep"]
+        self.history = copy.deepcopy(state["history"])
+        self.timesteps = list(state["timesteps"])
+        self.last_summary = dict(state["last_summary"])
+        env = resumable_env(self.eval_env)
+        if env is not None and state["eval_env"] is not None:
+            env.set_resume_state(state["eval_env"])
 
     def _save_evaluations(self) -> None:
         assert self.log_path is not None

@@ -27,6 +27,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_saeir.common.run_state import load_resume_state
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
 from sb3_saeir.config import ALGOS, build_callbacks, build_model, load_hyperparams, parse_policy_kwargs
 from sb3_saeir.envs import get_task_spec
@@ -36,6 +37,8 @@ from sb3_saeir.evaluation import MultiAgentEvalCallback
 EVAL_SEED_OFFSET = 10_000
 # At most this many games play an evaluation in parallel.
 MAX_EVAL_GAMES = 10
+# File name of the resumable checkpoints in a training run's folder (SB3's CheckpointCallback naming).
+CHECKPOINT_NAME = "rl_model_{steps}_steps.zip"
 
 
 class Experiment:
@@ -161,6 +164,18 @@ class Experiment:
         self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log)
         self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
         return self.model
+
+    def resume(self, checkpoint: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> dict[str, Any] | None:
+        """Load a checkpoint's model onto the training env (:meth:`load`) and return its resume state, for a
+        :class:`~sb3_saeir.common.run_state.RunCheckpointCallback` to restore at the first rollout (``None``: the zip
+        is a plain model, with no resume state).
+
+        :param checkpoint: a checkpoint zip written by :func:`~sb3_saeir.common.run_state.save_checkpoint`
+        :param device: torch device
+        :param tensorboard_log: tensorboard log folder
+        """
+        self.load(checkpoint, device=device, tensorboard_log=tensorboard_log)
+        return load_resume_state(Path(checkpoint))
 
     def learn(
         self,
@@ -302,6 +317,17 @@ def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]
 def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
     """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering)."""
     return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
+
+
+def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
+    """The resumable checkpoints of a training run's folder (``rl_model_<steps>_steps.zip``), by agent-steps."""
+    prefix, suffix = CHECKPOINT_NAME.split("{steps}")
+    checkpoints = {}
+    for path in Path(folder).glob(f"{prefix}*{suffix}"):
+        steps = path.name[len(prefix) : -len(suffix)]
+        if steps.isdigit():
+            checkpoints[int(steps)] = path
+    return checkpoints
 
 
 def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:

@@ -7,26 +7,46 @@ Writes rl-zoo's folder layout, ``<log-folder>/<algo>/<task>_<run>/``:
 - ``<task>/config.yml`` (resolved hyperparameters), ``<task>/args.yml`` (command-line arguments), and tensorboard
   events under ``--tensorboard-log``.
 
+- ``progress.csv`` (SB3's logger: every ``rollout/``, ``train/``, ``eval/`` and ``time/`` row).
+
 A new run number is used for every run, so nothing already saved is overwritten. ``--optimize`` tunes
 hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
+
+**Resuming.** The checkpoints of ``--save-freq`` are resumable: each holds, besides the model, everything the rest of
+the run depends on (:mod:`sb3_saeir.common.run_state`). The same command with ``--resume`` continues the latest run
+of that algo and task (``--resume N``: run ``N``) from its last checkpoint, in its own folder, and ends as the run
+would have ended uninterrupted: same parameters, same ``progress.csv`` rows (but the ``time/`` columns), same
+evaluations. It refuses a command whose settings differ from the run's (``<task>/args.yml``, ``<task>/config.yml``),
+naming them. The first Ctrl-C finishes the rollout and update in progress, writes a checkpoint and stops (a second
+Ctrl-C stops at once); a killed run resumes from its last ``--save-freq`` checkpoint. ``-i`` keeps its meaning:
+continue a saved model with a fresh state (new run, new generators, fresh env).
 """
 
 from __future__ import annotations
 
 import argparse
+import inspect
+import json
+import signal
 import sys
+import threading
 import time
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
-from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
-from stable_baselines3.common.utils import set_random_seed
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.utils import configure_logger, set_random_seed
 
-from sb3_saeir.common.callbacks import BudgetEstimate, EveryAgentSteps
+from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.run_state import RunCheckpointCallback, describe_resume, load_resume_state, progress_logger
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import (
@@ -45,7 +65,14 @@ from sb3_saeir.config import (
     valid_keys,
 )
 from sb3_saeir.envs import list_tasks
-from sb3_saeir.experiment import Experiment, model_method_mismatch, next_run_folder
+from sb3_saeir.experiment import (
+    CHECKPOINT_NAME,
+    Experiment,
+    checkpoint_steps,
+    model_method_mismatch,
+    next_run_folder,
+    run_numbers,
+)
 
 __all__ = [
     "CONFIG_KEYS",
@@ -56,6 +83,7 @@ __all__ = [
     "main",
     "make_parser",
     "parse_params",
+    "resume_differences",
     "train",
     "valid_keys",
 ]
@@ -120,33 +148,218 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     return resolved
 
 
-def run_callbacks(args: argparse.Namespace, experiment: Experiment) -> list[BaseCallback]:
-    """Checkpoints every ``--save-freq`` and evaluation every ``--eval-freq`` agent-steps."""
-    callbacks: list[BaseCallback] = []
+# Command-line options that may change between a run and its --resume: they do not change what is trained.
+RESUME_FREE_OPTIONS = ("resume", "progress", "verbose")
+# Options of --optimize only, not part of a training run.
+OPTIMIZE_OPTIONS = ("optimize", "n_trials", "n_jobs", "sampler", "pruner", "n_evaluations", "storage", "study_name")
+# Flags of the options whose flag is not "--" + the name with dashes.
+OPTION_FLAGS = {"conf_file": "-conf", "params": "-params", "trained_agent": "-i", "log_folder": "-f", "tensorboard_log": "-tb"}
+
+
+@dataclass(frozen=True)
+class ResumePoint:
+    """Where ``--resume`` continues: a run's folder, its last checkpoint and the checkpoint's resume state.
+
+    :param folder: the run's folder
+    :param checkpoint: its last resumable checkpoint
+    :param state: the checkpoint's resume state
+    :param seed: the run's seed (as recorded in ``<task>/args.yml``)
+    """
+
+    folder: Path
+    checkpoint: Path
+    state: dict[str, Any]
+    seed: int
+
+    @property
+    def steps(self) -> int:
+        """Agent-steps of the checkpoint."""
+        return int(self.state["num_timesteps"])
+
+
+def run_callbacks(
+    args: argparse.Namespace, experiment: Experiment, resume: ResumePoint | None
+) -> tuple[RunCheckpointCallback, list[BaseCallback]]:
+    """The run's checkpoints (every ``--save-freq`` agent-steps, resumable; also on Ctrl-C) and its evaluation every
+    ``--eval-freq`` agent-steps, whose state the checkpoints carry.
+
+    :return: the checkpoint callback and every callback of the run (it first)
+    """
     assert experiment.log_folder is not None
-    if args.save_freq > 0:
-        checkpoint = CheckpointCallback(save_freq=1, save_path=str(experiment.log_folder), name_prefix="rl_model", verbose=0)
-        callbacks.append(EveryAgentSteps(checkpoint, args.save_freq))
+    callbacks: list[BaseCallback] = []
+    extras: dict[str, Any] = {}
     if args.eval_freq > 0:
-        callbacks.append(experiment.eval_callback(args.eval_freq, args.eval_episodes, verbose=args.verbose))
-    return callbacks
+        evaluation = experiment.eval_callback(args.eval_freq, args.eval_episodes, verbose=args.verbose)
+        extras["evaluation"] = evaluation
+        callbacks.append(evaluation)
+    checkpoints = RunCheckpointCallback(
+        experiment.log_folder,
+        CHECKPOINT_NAME,
+        save_freq=args.save_freq if args.save_freq > 0 else sys.maxsize,  # never but on Ctrl-C
+        resumed_at=resume.steps if resume is not None else 0,
+        resume_state=resume.state if resume is not None else None,
+        extras=extras,
+    )
+    return checkpoints, [checkpoints, *callbacks]
+
+
+def config_record(hyperparams: dict[str, Any]) -> dict[str, Any]:
+    """The resolved hyperparameters as ``<task>/config.yml`` holds them (objects as their ``str``)."""
+    return {
+        key: (str(value) if not isinstance(value, (int, float, str, bool, list, dict, type(None))) else value)
+        for key, value in sorted(hyperparams.items())
+    }
 
 
 def save_run_config(params_path: Path, hyperparams: dict[str, Any], args: argparse.Namespace) -> None:
     """``<task>/config.yml`` (resolved hyperparameters) and ``<task>/args.yml`` (the command line), as rl-zoo."""
-    saved = {
-        key: (str(value) if not isinstance(value, (int, float, str, bool, list, dict, type(None))) else value)
-        for key, value in sorted(hyperparams.items())
-    }
-    (params_path / "config.yml").write_text(yaml.safe_dump(saved, sort_keys=True))
+    (params_path / "config.yml").write_text(yaml.safe_dump(config_record(hyperparams), sort_keys=True))
     (params_path / "args.yml").write_text(yaml.safe_dump({k: v for k, v in sorted(vars(args).items())}))
 
 
-def train(args: argparse.Namespace) -> Path:
-    """Train one run; returns its folder.
+def _flag(option: str) -> str:
+    return OPTION_FLAGS.get(option, "--" + option.replace("_", "-"))
 
-    Everything that can fail on a bad setting (config, env, model, saved model) is built before the run folder is
-    created, so a bad command leaves no empty run behind.
+
+def resume_differences(
+    stored_args: dict[str, Any], stored_config: dict[str, Any], args: argparse.Namespace, resolved: dict[str, Any]
+) -> list[str]:
+    """What differs between a run (its ``args.yml`` and ``config.yml``) and the command resuming it, as
+    ``"<flag> <old> -> <new>"`` and ``"config <key> <old> -> <new>"``.
+
+    An option the run's ``args.yml`` lacks (an older version) counts as its default; ``--seed -1`` takes the run's
+    seed; :data:`RESUME_FREE_OPTIONS` and the ``--optimize`` options are not compared.
+
+    :param stored_args: the run's ``args.yml``
+    :param stored_config: the run's ``config.yml``
+    :param args: the command
+    :param resolved: the command's resolved hyperparameters (the model's, after building)
+    """
+    parser = make_parser()
+    command = vars(args)
+    differences = []
+    for option in sorted(set(command) - {*RESUME_FREE_OPTIONS, *OPTIMIZE_OPTIONS}):
+        old = stored_args.get(option, parser.get_default(option))
+        new = command[option]
+        if option == "seed" and new == -1:
+            continue
+        if old != new:
+            differences.append(f"{_flag(option)} {json.dumps(old)} -> {json.dumps(new)}")
+    new_config = config_record(resolved)
+    differences += [
+        f"config {key} {json.dumps(stored_config.get(key))} -> {json.dumps(new_config.get(key))}"
+        for key in sorted(set(stored_config) | set(new_config))
+        if stored_config.get(key) != new_config.get(key)
+    ]
+    return differences
+
+
+def saved_timesteps(path: Path) -> int:
+    """The agent-steps a saved model zip records (``num_timesteps`` in its ``data``), without loading it."""
+    with zipfile.ZipFile(path) as archive:
+        return int(json.loads(archive.read("data"))["num_timesteps"])
+
+
+def find_resume_point(args: argparse.Namespace, n_timesteps: int) -> ResumePoint:
+    """The run ``--resume`` continues (the latest of ``--algo`` on ``--task`` in ``--log-folder``, or run ``N``) and its
+    last checkpoint; refuses a run that is finished or has no resumable checkpoint.
+
+    :param args: the command
+    :param n_timesteps: the command's budget in agent-steps
+    :raises ~sb3_saeir.config.ConfigError: naming the run and the fix
+    """
+    runs = run_numbers(args.log_folder, args.algo, args.task)
+    where = Path(args.log_folder) / args.algo
+    if not runs:
+        raise ConfigError(f"--resume: no run of {args.algo} on {args.task} in {where}; start one without --resume.")
+    number = args.resume or max(runs)
+    if number not in runs:
+        raise ConfigError(
+            f"--resume {number}: no run {number} of {args.algo} on {args.task} in {where}; runs: {sorted(runs)}."
+        )
+    folder = runs[number]
+    args_path = folder / args.task / "args.yml"
+    if not args_path.is_file():
+        raise ConfigError(f"--resume: {folder} has no {args.task}/args.yml: it is not a run of this command.")
+    checkpoints = checkpoint_steps(folder)
+    if not checkpoints:
+        raise ConfigError(
+            f"--resume: {folder} has no checkpoint ({CHECKPOINT_NAME.format(steps='<steps>')}): it ran without "
+            "--save-freq and was not stopped with Ctrl-C. Continue its model with -i instead (a fresh state)."
+        )
+    checkpoint = checkpoints[max(checkpoints)]
+    state = load_resume_state(checkpoint)
+    if state is None:
+        raise ConfigError(
+            f"--resume: {checkpoint} has no resume state (written by an older version): continue it with -i instead."
+        )
+    final = folder / f"{args.task}.zip"
+    budget = int(state["model"].get("_num_timesteps_at_start", 0)) + n_timesteps
+    if final.is_file() and saved_timesteps(final) >= budget:
+        raise ConfigError(f"--resume: {folder} is finished ({final.name} at {saved_timesteps(final):,} agent-steps).")
+    seed = int(yaml.safe_load(args_path.read_text())["seed"])
+    return ResumePoint(folder, checkpoint, state, seed)
+
+
+def check_resume_settings(resume: ResumePoint, args: argparse.Namespace, experiment: Experiment) -> None:
+    """Refuse a ``--resume`` whose command differs from the run's (one line per setting).
+
+    :raises ~sb3_saeir.config.ConfigError: naming what differs and the fix
+    """
+    params_path = resume.folder / args.task
+    stored_args = yaml.safe_load((params_path / "args.yml").read_text()) or {}
+    stored_config = yaml.safe_load((params_path / "config.yml").read_text()) or {}
+    differences = resume_differences(stored_args, stored_config, args, experiment.resolved_hyperparams)
+    if differences:
+        raise ConfigError(
+            f"--resume: {resume.folder} was made with other settings: {'; '.join(differences)}. Fix: resume with the "
+            "command that started it, or start a new run without --resume."
+        )
+
+
+def run_logger(args: argparse.Namespace, experiment: Experiment, resume: ResumePoint | None) -> Logger:
+    """SB3's logger of the run (stdout with ``--verbose`` >= 1, tensorboard with ``-tb``) writing ``progress.csv`` in
+    its folder, continued after the checkpoint's rows on ``--resume`` (tensorboard then goes on in the latest
+    ``<tb_log_name>_<N>`` folder, as SB3's ``reset_num_timesteps=False`` does)."""
+    assert experiment.model is not None and experiment.log_folder is not None
+    tb_log_name = inspect.signature(type(experiment.model).learn).parameters["tb_log_name"].default
+    tensorboard_log = getattr(experiment.model, "tensorboard_log", None)
+    continued = resume is not None or bool(args.trained_agent)
+    sb3_logger = configure_logger(args.verbose, tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
+    formats = [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
+    if resume is None:
+        return progress_logger(experiment.log_folder, None, 0, formats)
+    rollout = int(getattr(experiment.model, "n_steps", 1)) * experiment.model.n_envs
+    return progress_logger(experiment.log_folder, resume.steps, resume.steps // rollout, formats)
+
+
+@contextmanager
+def checkpoint_on_ctrl_c(checkpoints: RunCheckpointCallback) -> Iterator[None]:
+    """While training: the first Ctrl-C asks for a checkpoint at the next rollout start and a stop there; a second
+    stops at once (``KeyboardInterrupt``). Outside the main thread (where signals cannot be handled) Ctrl-C stops at
+    once."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if checkpoints.stop_requested:
+            raise KeyboardInterrupt
+        checkpoints.request_stop()
+        print("\nCtrl-C: writing a checkpoint after this rollout and update, then stopping (Ctrl-C again: stop now)")
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def train(args: argparse.Namespace) -> Path:
+    """Train one run (or, with ``--resume``, continue one from its last checkpoint); returns its folder.
+
+    Everything that can fail on a bad setting (config, env, model, saved model, the settings of the run resumed) is
+    built and checked before the run folder is created or written, so a bad command leaves nothing behind.
     """
     check_arguments(args)
     hyperparams = resolve_hyperparams(args)
@@ -157,49 +370,72 @@ def train(args: argparse.Namespace) -> Path:
         if mismatch:
             raise ConfigError(f"--trained-agent {mismatch}")
     set_num_threads(args.num_threads)
-    seed = int(np.random.randint(2**31 - 1)) if args.seed < 0 else args.seed
+    n_timesteps = int(hyperparams.get("n_timesteps", 1_000_000))
+    resume = find_resume_point(args, n_timesteps) if args.resume is not None else None
+    if resume is not None:
+        seed, save_path = resume.seed, resume.folder
+    else:
+        seed = int(np.random.randint(2**31 - 1)) if args.seed < 0 else args.seed
+        save_path = next_run_folder(args.log_folder, args.algo, args.task)
     set_random_seed(seed)
-    save_path = next_run_folder(args.log_folder, args.algo, args.task)
     experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
-    build_experiment(experiment, args)
+    build_experiment(experiment, args, resume)
     try:
-        callbacks = [*run_callbacks(args, experiment), BudgetEstimate(experiment.n_timesteps)]
+        checkpoints, callbacks = run_callbacks(args, experiment, resume)
     except (ValueError, TypeError) as error:
         experiment.close()
         raise ConfigError(f"cannot set up evaluation or checkpoints: {error}") from error
+    callbacks.append(BudgetEstimate(n_timesteps))
     params_path = save_path / args.task
-    params_path.mkdir(parents=True, exist_ok=False)
+    params_path.mkdir(parents=True, exist_ok=resume is not None)
     assert experiment.model is not None and experiment.env is not None
-    experiment.model.set_env(MultiAgentVecMonitor(experiment.env, str(save_path / "games"), env_id=args.task))
-    save_run_config(params_path, experiment.resolved_hyperparams, argparse.Namespace(**{**vars(args), "seed": seed}))
-    n_timesteps = experiment.n_timesteps
+    monitor = MultiAgentVecMonitor(experiment.env, str(save_path / "games"), env_id=args.task, append=resume is not None)
+    experiment.model.set_env(monitor)
+    experiment.model.set_logger(run_logger(args, experiment, resume))
+    if resume is None:
+        save_run_config(params_path, experiment.resolved_hyperparams, argparse.Namespace(**{**vars(args), "seed": seed}))
+    remaining = n_timesteps
     n_agents = experiment.env.num_envs // experiment.n_games
     print(f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} agent-steps")
-    if args.n_timesteps is None:
+    if resume is not None:
+        remaining = int(resume.state["model"].get("_num_timesteps_at_start", 0)) + n_timesteps - resume.steps
+        print(f"Resuming {save_path} from {resume.checkpoint.name}: {remaining:,} agent-steps to go")
+        for message in describe_resume(experiment.model, resume.state):
+            print(f"Note: {message}")
+    elif args.n_timesteps is None:
         print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
     print(f"Log folder: {save_path}")
     start = time.time()
     try:
-        experiment.learn(
-            n_timesteps, callbacks=callbacks, progress_bar=args.progress, reset_num_timesteps=not args.trained_agent
-        )
+        with checkpoint_on_ctrl_c(checkpoints):
+            experiment.learn(
+                remaining,
+                callbacks=callbacks,
+                progress_bar=args.progress,
+                reset_num_timesteps=not (args.trained_agent or resume is not None),
+            )
     except KeyboardInterrupt:
-        print("Interrupted: saving the model.")
+        print("Interrupted: saving the model (resume from the last checkpoint, if any, with --resume).")
+    if checkpoints.stopped_at is not None:
+        print(f"Stopped at the checkpoint {checkpoints.stopped_at}: the same command with --resume continues it.")
     model_path = experiment.save(save_path / f"{args.task}.zip")
     experiment.close()
     print(f"Saved {model_path} after {time.time() - start:.0f} s")
     return save_path
 
 
-def build_experiment(experiment: Experiment, args: argparse.Namespace) -> None:
-    """Build the env and the model (or load ``--trained-agent``); a bad setting becomes a
-    :class:`~sb3_saeir.config.ConfigError`."""
+def build_experiment(experiment: Experiment, args: argparse.Namespace, resume: ResumePoint | None = None) -> None:
+    """Build the env and the model (or load ``--trained-agent``, or, with ``--resume``, check the run's settings and
+    load its checkpoint); a bad setting becomes a :class:`~sb3_saeir.config.ConfigError`."""
     try:
-        if args.trained_agent:
+        if args.trained_agent and resume is None:
             experiment.load(args.trained_agent, device=args.device, tensorboard_log=args.tensorboard_log)
         else:
             experiment.build(verbose=args.verbose, device=args.device, tensorboard_log=args.tensorboard_log)
-    except (ValueError, TypeError, KeyError, zipfile.BadZipFile) as error:
+        if resume is not None:
+            check_resume_settings(resume, args, experiment)
+            experiment.resume(resume.checkpoint, device=args.device, tensorboard_log=args.tensorboard_log)
+    except (ValueError, TypeError, KeyError, zipfile.BadZipFile, ConfigError) as error:
         experiment.close()
         if isinstance(error, ConfigError):
             raise
@@ -237,7 +473,17 @@ def make_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--progress", action="store_true", help="show a progress bar")
     parser.add_argument("-params", "--hyperparams", dest="params", nargs="+", default=None, help="overrides key:value")
-    parser.add_argument("-i", "--trained-agent", default="", help="continue training this saved model")
+    parser.add_argument("-i", "--trained-agent", default="", help="continue training this saved model (fresh state)")
+    parser.add_argument(
+        "--resume",
+        nargs="?",
+        type=count,
+        const=0,
+        default=None,
+        metavar="RUN",
+        help="continue the latest run of this algo and task (or run RUN) from its last checkpoint, exactly; give the "
+        "command that started it",
+    )
     parser.add_argument("--verbose", type=int, default=1)
     parser.add_argument("-optimize", "--optimize-hyperparameters", "--optimize", dest="optimize", action="store_true")
     parser.add_argument("--n-trials", type=count, default=10, help="Optuna trials (this worker)")

@@ -14,7 +14,7 @@ import pytest
 from scipy.stats import mannwhitneyu
 
 from sb3_saeir import benchmark
-from sb3_saeir.benchmark import RunSpec, execute_run, main, parse_seeds, run_folder
+from sb3_saeir.benchmark import RunSpec, execute_run, execution, main, parse_seeds, run_folder
 
 TINY_ARGV = ["-n", "200", "--n-games", "2", "--eval-freq", "100", "--eval-episodes", "2", "-params", "n_steps:10"]
 
@@ -131,14 +131,14 @@ def test_interrupted_run_resumes_from_checkpoint(tmp_path, monkeypatch):
 
 
 def test_failing_run_does_not_stop_the_others(tmp_path, monkeypatch):
-    real = benchmark.execute_run
+    real = execution.execute_run
 
     def flaky(spec, folder):
         if spec.seed == 2:
             raise ValueError("boom")
         return real(spec, folder)
 
-    monkeypatch.setattr(benchmark, "execute_run", flaky)
+    monkeypatch.setattr(execution, "execute_run", flaky)
     argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY_ARGV, "--out", str(tmp_path)]
     assert main(argv) == 1
     assert "mappo/cn-sparse-n3_s2" in (tmp_path / "failures.txt").read_text()

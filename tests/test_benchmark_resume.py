@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from sb3_saeir import benchmark, make_multiagent_vec_env
-from sb3_saeir.benchmark import INTERRUPTED, BenchmarkEvalCallback, RunSpec, execute_run, main, run_folder
+from sb3_saeir.benchmark import INTERRUPTED, BenchmarkEvalCallback, RunSpec, execute_run, execution, main, run_folder
 from sb3_saeir.config import ALGOS as ALGO_CLASSES
 
 ALGOS = ["mappo", "saeir_ppo", "rnd"]
@@ -246,7 +246,7 @@ def test_ctrl_c_ends_with_one_line(tmp_path, monkeypatch, capsys):
     def interrupted(spec, folder):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(benchmark, "execute_run", interrupted)
+    monkeypatch.setattr(execution, "execute_run", interrupted)
     assert main(["--algos", "mappo", *ARGV, "--out", str(tmp_path)]) == 130
     assert capsys.readouterr().err == INTERRUPTED + "\n"
 
@@ -255,7 +255,7 @@ def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
     def slow(spec, folder):  # workers are forked: they run this
         time.sleep(60)
 
-    monkeypatch.setattr(benchmark, "execute_run", slow)
+    monkeypatch.setattr(execution, "execute_run", slow)
     # a terminal's Ctrl-C: SIGINT raises KeyboardInterrupt (pytest-xdist workers and background jobs ignore SIGINT)
     previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT))

@@ -13,6 +13,7 @@ reset together. Episode statistics are recorded once per game (not once per agen
 from __future__ import annotations
 
 import collections
+import os
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -25,6 +26,7 @@ from pettingzoo.utils.env import AECEnv, ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
+from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
 from sb3_saeir.common.utils import check_bool
 
 ParallelEnvFactory = Callable[..., ParallelEnv]
@@ -562,8 +564,6 @@ def make_multiagent_vec_env(
     :param task_kwargs: keyword arguments for the task constructor (e.g. ``N=4``, ``render_mode="rgb_array"``)
     :return: the vector env; ``env.n_agents``, ``env.n_games`` and ``env.possible_agents`` describe the layout
     """
-    from sb3_saeir.envs.registry import get_native_vec_env_factory, get_task_factory
-
     check_vec_env_options(n_games, num_cpus, mark_truncation, check_finite)
     if backend not in VEC_ENV_BACKENDS:
         raise ValueError(f"backend must be one of {VEC_ENV_BACKENDS[1:]} or None (the task's default), got {backend!r}.")
@@ -623,19 +623,28 @@ class MultiAgentVecMonitor(VecEnvWrapper):
     creation, the header's ``t_start``). Unlike SB3's ``VecMonitor`` it counts games, not agents. Attribute access
     falls through to the wrapped env (``n_agents``, ``n_games``, ...).
 
+    With ``append``, an existing CSV is continued (its header and rows kept) rather than started anew: a resumed run
+    (``python -m sb3_saeir.train --resume``) writes on into its file. :meth:`get_resume_state` and
+    :meth:`set_resume_state` carry the records and the wrapped env's state through a checkpoint
+    (:mod:`sb3_saeir.common.run_state`); restoring cuts the CSV back to the rows written by then.
+
     :param venv: a multi-agent vec env
     :param filename: path prefix of the CSV (``"<dir>/games"`` -> ``<dir>/games.monitor.csv``); ``None``: no file
     :param env_id: written in the CSV header
+    :param append: continue an existing CSV instead of overwriting it
     """
 
-    def __init__(self, venv: VecEnv, filename: str | None = None, env_id: str = "games") -> None:
+    def __init__(self, venv: VecEnv, filename: str | None = None, env_id: str = "games", append: bool = False) -> None:
         super().__init__(venv)
         self.filename = filename
         self.env_id = env_id
+        check_bool("MultiAgentVecMonitor", append=append)
+        self.append = append
         self.t_start = time.time()
         self.results_writer: Any = None
         self.episodes: collections.deque[dict[str, Any]] = collections.deque(maxlen=10_000)
         self.n_finished_games = 0
+        self.rows_written = 0
 
     def reset(self) -> VecEnvObs:
         return self.venv.reset()
@@ -660,8 +669,50 @@ class MultiAgentVecMonitor(VecEnvWrapper):
             return
         if self.results_writer is None:
             header: dict[str, float | str] = {"t_start": self.t_start, "env_id": self.env_id}
-            self.results_writer = ResultsWriter(self.filename, header=header, extra_keys=tuple(episode))
+            keep = self.append and os.path.isfile(self.csv_path)
+            self.results_writer = ResultsWriter(
+                self.filename, header=header, extra_keys=tuple(episode), override_existing=not keep
+            )
         self.results_writer.write_row(row)
+        self.rows_written += 1
+
+    @property
+    def csv_path(self) -> str:
+        """The monitor CSV's path (``<filename>.monitor.csv``)."""
+        assert self.filename is not None
+        return self.filename if self.filename.endswith("monitor.csv") else f"{self.filename}.monitor.csv"
+
+    def get_resume_state(self) -> dict[str, Any]:
+        """The wrapped env's state (its ``get_resume_state``) and the records so far.
+
+        :return: a dict for :meth:`set_resume_state`
+        """
+        return {
+            "venv": self.venv.get_resume_state(),  # type: ignore[attr-defined]
+            "episodes": list(self.episodes),
+            "n_finished_games": self.n_finished_games,
+            "rows_written": self.rows_written,
+            "t_start": self.t_start,
+        }
+
+    def set_resume_state(self, state: dict[str, Any]) -> None:
+        """Go back to the state of :meth:`get_resume_state`: the wrapped env's, the records, and the CSV cut back to
+        its header and the rows written by then (rows written after, by an interrupted process, are dropped)."""
+        self.venv.set_resume_state(state["venv"])  # type: ignore[attr-defined]
+        self.episodes = collections.deque(state["episodes"], maxlen=self.episodes.maxlen)
+        self.n_finished_games = state["n_finished_games"]
+        self.rows_written = state["rows_written"]
+        self.t_start = state["t_start"]
+        if self.results_writer is not None:
+            self.results_writer.close()
+            self.results_writer = None
+        if self.filename is not None and os.path.isfile(self.csv_path):
+            with open(self.csv_path) as file:
+                lines = file.read().split("\n")[:-1]  # after the last newline: a row cut by a kill
+            kept = lines[: 2 + self.rows_written] if self.rows_written else []  # the header's two lines, then rows
+            with open(self.csv_path, "w") as file:
+                file.write("".join(line + "\n" for line in kept))
+            self.append = bool(kept)
 
     def close(self) -> None:
         if self.results_writer is not None:

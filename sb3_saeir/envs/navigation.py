@@ -21,7 +21,8 @@ landmark covered at the final step, ``reach_events`` = landmarks that became rea
 One engine, :class:`~sb3_saeir.envs.navigation_core.NavigationCore` (batched NumPy), has two faces: the PettingZoo
 ``ParallelEnv`` :class:`SparseCooperativeNavigation` (one game; it goes through SuperSuit like any user env) and the
 native multi-agent vec env :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` (G games, the fast path that
-``make_multiagent_vec_env`` builds for the navigation tasks).
+``make_multiagent_vec_env`` builds for the navigation tasks). The two faces do not import each other: the task
+registry (:mod:`sb3_saeir.envs.registry`) names the vec env as the navigation tasks' ``vec_env_entry_point``.
 """
 
 from __future__ import annotations
@@ -37,13 +38,14 @@ from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY
 from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
     COVER_RADIUS,
+    METADATA,
     N_ACTIONS,
     REWARDS,
     WORLDS,
     NavigationCore,
     check_finite_option,
     check_positive_int,
-    observation_dim,
+    navigation_spaces,
 )
 
 __all__ = [
@@ -56,21 +58,6 @@ __all__ = [
     "navigation_spaces",
     "sparse_navigation_reward",
 ]
-
-
-def navigation_spaces(N: int, continuous_actions: bool) -> tuple[spaces.Box, spaces.Space]:
-    """Observation and action space of one agent (mpe2's): ``Box(-inf, inf, (obs_dim,), float32)`` and ``Discrete(5)``
-    or ``Box(0, 1, (5,), float32)``.
-
-    :param N: agents per game
-    :param continuous_actions: continuous actions
-    """
-    shape = (observation_dim(N),)
-    observation_space = spaces.Box(low=-np.float32(np.inf), high=+np.float32(np.inf), shape=shape, dtype=np.float32)
-    action_space: spaces.Space = spaces.Discrete(N_ACTIONS)
-    if continuous_actions:
-        action_space = spaces.Box(low=0.0, high=1.0, shape=(N_ACTIONS,), dtype=np.float32)
-    return observation_space, action_space
 
 
 def count_covered_landmarks(agent_positions: np.ndarray, landmark_positions: np.ndarray, radius: float = COVER_RADIUS) -> int:
@@ -136,12 +123,7 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
         that became reached at this step)
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["rgb_array"],
-        "name": "cn_sparse_v0",
-        "is_parallelizable": True,
-        "render_fps": 10,
-    }
+    metadata: ClassVar[dict[str, Any]] = dict(METADATA)
 
     def __init__(
         self,
@@ -300,16 +282,3 @@ class SparseCooperativeNavigation(ParallelEnv, EzPickle):
 
     def close(self) -> None:
         pass
-
-    @classmethod
-    def native_vec_env(cls, n_games: int, mark_truncation: bool = False, **kwargs: Any) -> Any:
-        """The native batched vec env of ``n_games`` games of this task (what ``make_multiagent_vec_env`` builds).
-
-        :param n_games: number of games
-        :param mark_truncation: see :func:`~sb3_saeir.make_multiagent_vec_env`
-        :param kwargs: this class's constructor keywords
-        :return: a :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv`
-        """
-        from sb3_saeir.envs.navigation_vec_env import NavigationVecEnv
-
-        return NavigationVecEnv(n_games, mark_truncation=mark_truncation, **kwargs)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from sb3_saeir.common.utils import check_bool
@@ -50,11 +51,33 @@ N_ACTIONS = 5  # no-op, -x, +x, -y, +y (mpe2's discrete actions)
 ACTION_DIRECTIONS = np.array([[0.0, 0.0], [-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]])
 # Landmarks start in LANDMARK_RANGE[world] * U(-1, 1)^2.
 LANDMARK_RANGE = {"mpe": 0.8, "mpe2": 1.0}
+# Metadata of both faces (the ParallelEnv and the vec env).
+METADATA: dict[str, Any] = {
+    "render_modes": ["rgb_array"],
+    "name": "cn_sparse_v0",
+    "is_parallelizable": True,
+    "render_fps": 10,
+}
 
 
 def observation_dim(n_agents: int) -> int:
     """Length of one agent's observation: velocity, position, landmarks, other agents, their (silent) messages."""
     return 4 + 2 * n_agents + 4 * (n_agents - 1)
+
+
+def navigation_spaces(N: int, continuous_actions: bool) -> tuple[spaces.Box, spaces.Space]:
+    """Observation and action space of one agent (mpe2's): ``Box(-inf, inf, (obs_dim,), float32)`` and ``Discrete(5)``
+    or ``Box(0, 1, (5,), float32)``.
+
+    :param N: agents per game
+    :param continuous_actions: continuous actions
+    """
+    shape = (observation_dim(N),)
+    observation_space = spaces.Box(low=-np.float32(np.inf), high=+np.float32(np.inf), shape=shape, dtype=np.float32)
+    action_space: spaces.Space = spaces.Discrete(N_ACTIONS)
+    if continuous_actions:
+        action_space = spaces.Box(low=0.0, high=1.0, shape=(N_ACTIONS,), dtype=np.float32)
+    return observation_space, action_space
 
 
 # Bytes of float64 working arrays one step allocates per agent-observation entry and per agent pair (observations,

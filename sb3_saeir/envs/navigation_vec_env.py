@@ -24,13 +24,14 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices,
 from sb3_saeir.common.utils import check_bool
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv
 from sb3_saeir.common.vec_env import check_finite as check_finite_values
-from sb3_saeir.envs.navigation import SparseCooperativeNavigation, navigation_spaces
 from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
     COVER_RADIUS,
+    METADATA,
     NavigationCore,
     check_finite_option,
     check_positive_int,
+    navigation_spaces,
 )
 
 # Per-game parameters: arrays of the core, one value per game.
@@ -168,7 +169,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
         self.games = [NavigationGame(self, g) for g in range(self.n_games)]
         observation_space, action_space = navigation_spaces(self.n_agents, self.core.continuous_actions)
         VecEnv.__init__(self, self.n_games * self.n_agents, observation_space, action_space)
-        self.metadata = dict(SparseCooperativeNavigation.metadata)
+        self.metadata = dict(METADATA)
         self._game_seed: int | None = None
         self._actions: np.ndarray | None = None
         self._init_episode_records()

@@ -1,0 +1,137 @@
+"""Final scores and their statistics: the last evaluation of every run, the main metric per task, IQM with
+stratified-bootstrap confidence intervals (rliable) and the exact two-sided Mann-Whitney U test between methods.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+
+# Columns of the paper's Table 1 per task family: (metric key in runs.csv, header, scale)
+TABLE_COLUMNS = {
+    "cn": [("coverage_rate_mean", "Coverage %", 100.0), ("ep_rew_mean", "Ep. reward", 1.0)],
+    "grf": [("success_mean", "Success %", 100.0), ("ep_rew_mean", "Ep. reward", 1.0)],
+}
+
+
+def final_rows(rows: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    """The last evaluation of every (algo, task, seed), grouped by (algo, task)."""
+    last: dict[tuple[str, str, int], dict[str, Any]] = {}
+    for row in rows:
+        key = (row["algo"], row["task"], row["seed"])
+        if key not in last or row["timesteps"] >= last[key]["timesteps"]:
+            last[key] = row
+    grouped: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for (algo, task, _), row in sorted(last.items()):
+        grouped.setdefault((algo, task), []).append(row)
+    return grouped
+
+
+def main_metric(task: str) -> tuple[str, str, float]:
+    """``(key, title, scale)`` of the task's main metric: the first column of :data:`TABLE_COLUMNS` for its family."""
+    return TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
+
+
+def final_scores(finals: dict[tuple[str, str], list[dict[str, Any]]]) -> dict[str, tuple[str, dict[str, list[float]]]]:
+    """Per task: the main metric's title and, per method, its scaled final values, one per seed.
+
+    :param finals: :func:`final_rows`
+    :return: ``{task: (title, {algo: values})}``
+    """
+    scores: dict[str, tuple[str, dict[str, list[float]]]] = {}
+    for task in sorted({task for _, task in finals}):
+        key, title, scale = main_metric(task)
+        scores[task] = (title, {algo: [scale * row[key] for row in runs] for (algo, t), runs in finals.items() if t == task})
+    return scores
+
+
+def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_seed: int = 0) -> str:
+    """IQM of the final main metric with 95% stratified-bootstrap confidence intervals (rliable).
+
+    :param rows: the evaluation rows of ``runs.csv`` (:func:`collect`), finished runs only
+    :param reps: bootstrap resamples per interval
+    :param bootstrap_seed: seed of the resampling, so that reporting the same runs twice writes the same intervals
+    :return: the Markdown table of ``aggregate.md``
+    """
+    from rliable import library as rly
+    from rliable import metrics
+
+    lines = ["| Task | Method | IQM | 95% CI |", "|---|---|---|---|"]
+    # rliable's StratifiedBootstrap draws its resamples from NumPy's global generator (it ignores random_state): seed
+    # that one for the call and give the caller's state back afterwards.
+    global_state = np.random.get_state()
+    np.random.seed(bootstrap_seed)
+    try:
+        for task, (title, values) in final_scores(final_rows(rows)).items():
+            scores = {algo: np.array(seeds)[:, None] for algo, seeds in values.items()}  # (n_seeds, 1 task) per method
+            estimates, intervals = rly.get_interval_estimates(
+                scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps
+            )
+            lines += _aggregate_lines(task, title, scores, estimates, intervals)
+    finally:
+        np.random.set_state(global_state)
+    return "\n".join(lines) + "\n"
+
+
+def mann_whitney(first: list[float], second: list[float], max_splits: int = 200_000) -> tuple[float, float]:
+    """The Mann-Whitney U statistic of ``first`` against ``second`` (pairs where ``first`` is above, ties counting half)
+    and its two-sided p-value: exact, from every split of the pooled values into two groups of these sizes (mid-ranks,
+    so ties are handled; the share of splits whose U is at least as far from its mean as the observed one), or SciPy's
+    normal approximation when there are more than ``max_splits`` splits.
+
+    :param first: final values of the first method, one per seed
+    :param second: final values of the second method, one per seed
+    :param max_splits: largest number of splits enumerated for the exact p-value
+    :return: ``(U, p)``
+    """
+    from scipy.stats import mannwhitneyu, rankdata
+
+    n_first, n_second = len(first), len(second)
+    ranks = rankdata(np.concatenate([first, second]))  # (n_first + n_second,) mid-ranks of the pooled values
+    offset = n_first * (n_first + 1) / 2
+    statistic = float(ranks[:n_first].sum() - offset)
+    if math.comb(n_first + n_second, n_first) > max_splits:
+        return statistic, float(mannwhitneyu(first, second, alternative="two-sided", method="asymptotic").pvalue)
+    mean = n_first * n_second / 2
+    split_statistics = np.array(
+        [ranks[list(split)].sum() - offset for split in itertools.combinations(range(n_first + n_second), n_first)]
+    )
+    extreme = np.abs(split_statistics - mean) >= abs(statistic - mean) - 1e-9
+    return statistic, float(extreme.mean())
+
+
+def pairwise_markdown(rows: list[dict[str, Any]]) -> str:
+    """Which differences between methods are larger than the seed spread: for every pair of methods on a task, the
+    difference of the mean final main metric, the share of (seed, seed) pairs where the first method ends above the
+    second (ties count half) and the two-sided Mann-Whitney U test's p-value (:func:`mann_whitney`).
+
+    :param rows: the evaluation rows of ``runs.csv`` (:func:`collect`), finished runs only
+    :return: the Markdown table appended to ``aggregate.md``
+    """
+    lines = [
+        "| Task | Method A | Method B | mean A - mean B | A above B (seed pairs) | Mann-Whitney p (two-sided) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for task, (title, scores) in final_scores(final_rows(rows)).items():
+        for first, second in itertools.combinations(sorted(scores), 2):
+            a, b = scores[first], scores[second]
+            statistic, p_value = mann_whitney(a, b)
+            lines.append(
+                f"| {task} | {first} (n={len(a)}) | {second} (n={len(b)}) | {np.mean(a) - np.mean(b):+.2f} {title} "
+                f"| {statistic / (len(a) * len(b)):.0%} | {p_value:.3f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _aggregate_lines(
+    task: str, title: str, scores: dict[str, np.ndarray], estimates: dict[str, np.ndarray], intervals: dict[str, np.ndarray]
+) -> list[str]:
+    """The rows of ``aggregate.md`` for one task: IQM and its interval per method."""
+    lines = []
+    for algo in sorted(scores):
+        low, high = intervals[algo][:, 0]  # intervals[algo]: (2 bounds, 1 metric)
+        lines.append(f"| {task} | {algo} | {estimates[algo][0]:.2f} {title} | [{low:.2f}, {high:.2f}] |")
+    return lines

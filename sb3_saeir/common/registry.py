@@ -1,0 +1,173 @@
+"""Registry of task ids: a name -> a factory returning one PettingZoo ``ParallelEnv`` (one game).
+
+This module holds the registry's storage and lookups; the package's own tasks are registered into it by
+:mod:`sb3_saeir.envs.registry` (run by ``import sb3_saeir``, hence by importing any ``sb3_saeir`` module). The same
+functions are importable from ``sb3_saeir.envs`` and ``sb3_saeir.envs.registry``.
+
+A task may also offer a native multi-agent vec env of many games, which ``make_multiagent_vec_env`` uses instead of
+SuperSuit (see ``docs/tasks.md``): registered with the task (``vec_env_entry_point``, as the navigation tasks are), or
+as a classmethod ``native_vec_env(n_games, mark_truncation=False, **kwargs)`` of the task's constructor;
+:func:`get_native_vec_env_factory` finds it.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pettingzoo.utils.env import ParallelEnv
+
+
+def load_entry_point(entry_point: str) -> Callable[..., Any]:
+    """Import the callable an entry point names.
+
+    :param entry_point: ``"module:callable"``
+    :return: the callable
+    """
+    module_name, attr = entry_point.split(":")
+    return getattr(importlib.import_module(module_name), attr)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A registered task.
+
+    :param task_id: the id used on the command line and in zoo configs (e.g. ``"cn-sparse-n3"``)
+    :param entry_point: ``"module:callable"`` returning a ``ParallelEnv``; imported lazily so that optional extras
+        (football) are only needed when their task is created
+    :param kwargs: default keyword arguments of the entry point (overridden by the caller's)
+    :param main_metric: the per-episode metric that says how good a policy is on this task (used for "best model")
+    :param description: one line for ``list_tasks``
+    :param vec_env_entry_point: ``"module:callable"`` building the task's native vec env,
+        ``(n_games, mark_truncation=False, **kwargs)`` with the entry point's keywords; ``None``: the constructor's
+        ``native_vec_env`` classmethod if it has one, else none (the games go through SuperSuit)
+    """
+
+    task_id: str
+    entry_point: str
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    main_metric: str = "r"
+    description: str = ""
+    vec_env_entry_point: str | None = None
+
+    def load(self) -> Callable[..., ParallelEnv]:
+        """Import the game's constructor."""
+        return load_entry_point(self.entry_point)
+
+    def load_vec_env(self) -> Callable[..., Any] | None:
+        """Import the native vec env's builder: the registered one, else the constructor's ``native_vec_env``
+        classmethod, else ``None``."""
+        if self.vec_env_entry_point is not None:
+            return load_entry_point(self.vec_env_entry_point)
+        return getattr(self.load(), "native_vec_env", None)
+
+
+_TASKS: dict[str, TaskSpec] = {}
+
+
+def register_task(
+    task_id: str,
+    entry_point: str,
+    kwargs: dict[str, Any] | None = None,
+    main_metric: str = "r",
+    description: str = "",
+    vec_env_entry_point: str | None = None,
+) -> None:
+    """Register a task id (re-registering the same id replaces it).
+
+    :param task_id: the id
+    :param entry_point: ``"module:callable"`` returning a PettingZoo ``ParallelEnv``
+    :param kwargs: default keyword arguments for the entry point
+    :param main_metric: episode metric maximised by "best model" selection (``"r"`` = team return)
+    :param description: one line shown by :func:`list_tasks`
+    :param vec_env_entry_point: ``"module:callable"`` building a native vec env of the task,
+        ``(n_games, mark_truncation=False, **kwargs)``; ``None``: the games go through SuperSuit (unless the
+        constructor has a ``native_vec_env`` classmethod)
+    """
+    _TASKS[task_id] = TaskSpec(task_id, entry_point, dict(kwargs or {}), main_metric, description, vec_env_entry_point)
+
+
+def list_tasks() -> list[str]:
+    """Registered task ids, sorted."""
+    return sorted(_TASKS)
+
+
+def get_task_spec(task_id: str) -> TaskSpec:
+    """The :class:`TaskSpec` of a task id.
+
+    :raises KeyError: with the list of valid ids, for an unknown id
+    """
+    if task_id not in _TASKS:
+        raise KeyError(f"Unknown task {task_id!r}. Registered tasks: {', '.join(list_tasks())}.")
+    return _TASKS[task_id]
+
+
+# Keyword of ``make_multiagent_vec_env`` that may travel with a task's kwargs (``env_kwargs`` of a config, the rl-zoo3
+# bridge); it selects how games are vectorised and is not passed to the game's constructor.
+VEC_ENV_KEYS = ("backend",)
+
+
+def get_task_factory(task_id: str) -> Callable[..., ParallelEnv]:
+    """A callable building one game of ``task_id``; caller kwargs override the registered defaults (a ``backend``
+    keyword, which selects the vec env, is ignored)."""
+    spec = get_task_spec(task_id)
+    constructor = spec.load()
+
+    def factory(**kwargs: Any) -> ParallelEnv:
+        game_kwargs = {key: value for key, value in kwargs.items() if key not in VEC_ENV_KEYS}
+        return constructor(**{**spec.kwargs, **game_kwargs})
+
+    factory.__name__ = f"make_{task_id.replace('-', '_')}"
+    return factory
+
+
+def _task_vec_env_factory(spec: TaskSpec) -> Callable[..., Any] | None:
+    """The native vec env builder of a registered task, its registered kwargs merged under the caller's.
+
+    :param spec: the task
+    """
+    native = spec.load_vec_env()
+    if native is None:
+        return None
+
+    def build(n_games: int, mark_truncation: bool = False, **kwargs: Any) -> Any:
+        return native(n_games, mark_truncation=mark_truncation, **{**spec.kwargs, **kwargs})
+
+    return build
+
+
+def _constructor_vec_env_factory(constructor: Callable[..., Any]) -> Callable[..., Any] | None:
+    """The native vec env builder of a game constructor: its ``native_vec_env`` classmethod, else the registered
+    ``vec_env_entry_point`` of the first task whose entry point names it (without that task's kwargs), else ``None``.
+
+    :param constructor: the game constructor
+    """
+    native = getattr(constructor, "native_vec_env", None)
+    if native is not None:
+        return native
+    entry_point = f"{getattr(constructor, '__module__', '')}:{getattr(constructor, '__qualname__', '')}"
+    for spec in _TASKS.values():
+        if spec.entry_point == entry_point and spec.vec_env_entry_point is not None:
+            return load_entry_point(spec.vec_env_entry_point)
+    return None
+
+
+def get_native_vec_env_factory(task: str | Callable[..., Any]) -> Callable[..., Any] | None:
+    """The native vec env builder of a task, or ``None`` when the task has none (it then goes through SuperSuit).
+
+    :param task: a registered task id or a game constructor; a task registered with a ``vec_env_entry_point``, or
+        whose constructor has a ``native_vec_env`` attribute (a classmethod ``native_vec_env(n_games,
+        mark_truncation=False, **kwargs)``), has a native vec env, and so has the constructor a registered task names
+    :return: a callable ``(n_games, mark_truncation=..., **kwargs)`` returning the vec env (for a task id, the
+        registered defaults merged with the caller's kwargs)
+    """
+    if isinstance(task, str):
+        return _task_vec_env_factory(get_task_spec(task))
+    return _constructor_vec_env_factory(task)
+
+
+def make_task(task_id: str, **kwargs: Any) -> ParallelEnv:
+    """Build one game (a PettingZoo ``ParallelEnv``) of a registered task."""
+    return get_task_factory(task_id)(**kwargs)

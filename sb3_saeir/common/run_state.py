@@ -1,0 +1,444 @@
+"""Run state: what a training run needs to continue bit for bit after it stopped, and where it is written.
+
+A run resumed from one of these checkpoints ends as the same run uninterrupted would have (same parameters, same
+``progress.csv`` rows but the ``time/`` columns), for envs that can save their state (``get_resume_state``: the
+native navigation env, and :class:`~sb3_saeir.common.vec_env.MultiAgentVecMonitor` around it). The pieces:
+
+- :func:`save_checkpoint` / :func:`load_resume_state`: the SB3 model zip with one more entry, ``resume_state.pkl``
+  (:func:`capture_resume_state`: the torch, NumPy and ``random`` generator states, the model's last observations,
+  episode starts and GRU states, its episode-info buffers, the training env's state, the intrinsic-reward callbacks,
+  the logger's values not yet written, and the state of any other object given as ``extras``, such as an evaluation
+  callback), written to a temporary file and moved into place, so that a kill during a save leaves the previous
+  checkpoint whole;
+- :class:`RunCheckpointCallback`: writes these checkpoints at rollout starts (the one point where nothing is half
+  done: the update is over and the next rollout has not begun) and restores one at the first rollout after resuming;
+  it also turns a stop request (Ctrl-C in ``python -m sb3_saeir.train``) into a checkpoint and a clean stop;
+- :func:`progress_logger`: SB3's logger going on with a run's ``progress.csv`` (rows after the checkpoint dropped,
+  ``time/iterations`` counting on);
+- :class:`SegmentClock`: the run's wall time over the processes that worked on it.
+
+``python -m sb3_saeir.train --resume`` and ``python -m sb3_saeir.benchmark`` both resume through this module (see
+``docs/guide/training.md`` and ``docs/guide/benchmark.md``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import random
+import time
+import zipfile
+from collections.abc import Callable
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Protocol
+
+import cloudpickle
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
+
+# The entry of a checkpoint zip that holds the resume state (SB3's load ignores it).
+RESUME_ENTRY = "resume_state.pkl"
+RESUME_FORMAT = 1
+# Model attributes that determine the next rollout and are not (or not reliably) in SB3's zip.
+MODEL_RESUME_ATTRIBUTES = (
+    "_last_obs",
+    "_last_episode_starts",
+    "_last_original_obs",
+    "_last_states",
+    "ep_info_buffer",
+    "ep_success_buffer",
+    "_episode_num",
+    "_num_timesteps_at_start",
+)
+# The model attributes that hold the env's side of the rollout: kept only when the env state is restored too.
+ENV_SIDE_ATTRIBUTES = ("_last_obs", "_last_episode_starts", "_last_original_obs", "_last_states")
+# Callback attributes that are links to the model or per-call data, not state of the callback.
+CALLBACK_LINKS = ("model", "parent", "locals", "globals", "training_env")
+# Per-rollout data that a callback clears at every rollout start.
+CALLBACK_TRANSIENT = ("next_observations",)
+
+
+class Resumable(Protocol):
+    """An object whose state a checkpoint carries (an evaluation callback, an env wrapper)."""
+
+    def get_resume_state(self) -> Any: ...
+
+    def set_resume_state(self, state: Any) -> None: ...
+
+
+# ---------------------------------------------------------------------------------------------------- files
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``path`` through a temporary file moved into place: a kill leaves the old file or the new one.
+
+    :param path: the file
+    :param data: its new content
+    """
+    temp = path.with_name(f".{path.name}.tmp")
+    temp.write_bytes(data)
+    os.replace(temp, path)
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """:func:`atomic_write_bytes` for text (UTF-8)."""
+    atomic_write_bytes(path, text.encode())
+
+
+def utc_stamp() -> str:
+    """The current UTC time, ``20250131T235959Z``."""
+    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+
+
+# ---------------------------------------------------------------------------------------------------- resume state
+def rng_states() -> dict[str, Any]:
+    """The torch, NumPy-global and Python ``random`` generator states (and CUDA's when available)."""
+    import torch as th
+
+    states: dict[str, Any] = {"torch": th.get_rng_state(), "numpy": np.random.get_state(), "random": random.getstate()}
+    if th.cuda.is_available():
+        states["cuda"] = th.cuda.get_rng_state_all()
+    return states
+
+
+def set_rng_states(states: dict[str, Any]) -> None:
+    """Restore generator states from :func:`rng_states`."""
+    import torch as th
+
+    th.set_rng_state(states["torch"])
+    np.random.set_state(states["numpy"])
+    random.setstate(states["random"])
+    if "cuda" in states and th.cuda.is_available():
+        th.cuda.set_rng_state_all(states["cuda"])
+
+
+def resumable_env(env: Any) -> Any | None:
+    """The training env if it can save and restore its exact state (``get_resume_state``), else ``None``.
+
+    SB3 ``VecEnvWrapper`` objects forward attribute look-ups to the env they wrap but keep state of their own, so a
+    wrapper counts as resumable only when its own class saves its state (as
+    :class:`~sb3_saeir.common.vec_env.MultiAgentVecMonitor` does) and the env it wraps is resumable.
+    """
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    if env is None or not callable(getattr(type(env), "get_resume_state", None)):
+        return None
+    if isinstance(env, VecEnvWrapper) and resumable_env(env.venv) is None:
+        return None
+    return env
+
+
+def callback_state(callback: Any) -> dict[str, Any]:
+    """The state of a callback: its attributes but the links to the model and per-rollout data."""
+    skipped = (*CALLBACK_LINKS, *CALLBACK_TRANSIENT)
+    return {
+        "class": type(callback).__qualname__,
+        "attributes": {key: value for key, value in vars(callback).items() if key not in skipped},
+    }
+
+
+def capture_resume_state(model: Any, extras: dict[str, Resumable] | None = None) -> dict[str, Any]:
+    """Everything besides the model zip that determines the rest of a run, at the start of a rollout.
+
+    :param model: a MAPPO / SAEIR_PPO model in ``learn``
+    :param extras: other objects whose state the run needs, by name (e.g. an evaluation callback)
+    :return: the resume state (pickled with cloudpickle into the checkpoint zip)
+    """
+    env = resumable_env(model.get_env())
+    logger = model.logger
+    return {
+        "format": RESUME_FORMAT,
+        "num_timesteps": model.num_timesteps,
+        "rng": rng_states(),
+        "model": {name: getattr(model, name) for name in MODEL_RESUME_ATTRIBUTES if hasattr(model, name)},
+        "env": env.get_resume_state() if env is not None else None,
+        "env_type": type(model.get_env()).__name__,
+        "callbacks": [callback_state(callback) for callback in getattr(model, "_intrinsic_rewards", [])],
+        "logger": {
+            "name_to_value": dict(logger.name_to_value),
+            "name_to_count": dict(logger.name_to_count),
+            "name_to_excluded": dict(logger.name_to_excluded),
+        },
+        "extras": {name: extra.get_resume_state() for name, extra in (extras or {}).items()},
+    }
+
+
+def is_exact(model: Any, state: dict[str, Any] | None) -> bool:
+    """Whether resuming ``model`` from ``state`` is exact: the checkpoint holds the env's state and the model's env
+    can take it back."""
+    return state is not None and state["env"] is not None and resumable_env(model.get_env()) is not None
+
+
+def restore_resume_state(
+    model: Any, state: dict[str, Any], log: Callable[[str], None], extras: dict[str, Resumable] | None = None
+) -> None:
+    """Put a resumed model, its env, its intrinsic-reward callbacks, its logger and the ``extras`` back in the state of
+    the moment the checkpoint was taken (call it at the same point: the start of the first rollout after resuming).
+
+    Without an env state (the env has no ``get_resume_state``), the env and the recurrent states keep the fresh start
+    that ``learn`` gave them: an approximate resume.
+
+    :param model: the model loaded from the checkpoint, in ``learn``
+    :param state: the resume state of the checkpoint
+    :param log: where to say what could not be restored
+    :param extras: the objects given to :func:`capture_resume_state`, by the same names
+    """
+    exact = is_exact(model, state)
+    if exact:
+        model.get_env().set_resume_state(state["env"])
+    for name, value in state["model"].items():
+        if exact or name not in ENV_SIDE_ATTRIBUTES:
+            setattr(model, name, value)
+    callbacks = list(getattr(model, "_intrinsic_rewards", []))
+    saved = state["callbacks"]
+    if [type(c).__qualname__ for c in callbacks] != [s["class"] for s in saved]:
+        log(f"intrinsic rewards {[s['class'] for s in saved]} in the checkpoint, {callbacks} now: not restored")
+    else:
+        for callback, callback_saved in zip(callbacks, saved):
+            callback.__dict__.update(callback_saved["attributes"])
+    saved_extras = state.get("extras", {})
+    for name, extra in (extras or {}).items():
+        if name in saved_extras:
+            extra.set_resume_state(saved_extras[name])
+        else:
+            log(f"the checkpoint holds no state of {name}: it starts afresh")
+    logger = model.logger
+    logger.name_to_value.update(state["logger"]["name_to_value"])
+    logger.name_to_count.update(state["logger"]["name_to_count"])
+    logger.name_to_excluded.update(state["logger"]["name_to_excluded"])
+    set_rng_states(state["rng"])
+
+
+def save_checkpoint(model: Any, path: Path, extras: dict[str, Resumable] | None = None) -> None:
+    """Save the model zip with the resume state inside (entry ``resume_state.pkl``), atomically.
+
+    :param model: the model, at the start of a rollout
+    :param path: the checkpoint's zip
+    :param extras: other objects whose state the checkpoint carries (:func:`capture_resume_state`)
+    """
+    temp = path.with_name(f".{path.stem}.tmp.zip")
+    model.save(temp)
+    with zipfile.ZipFile(temp, "a") as archive:
+        archive.writestr(RESUME_ENTRY, cloudpickle.dumps(capture_resume_state(model, extras)))
+    os.replace(temp, path)
+
+
+def load_resume_state(path: Path) -> dict[str, Any] | None:
+    """The resume state inside a checkpoint zip (``None`` for a zip without one: a plain model, or an older version)."""
+    with zipfile.ZipFile(path) as archive:
+        if RESUME_ENTRY not in archive.namelist():
+            return None
+        state: dict[str, Any] = cloudpickle.loads(archive.read(RESUME_ENTRY))
+    return state if state.get("format") == RESUME_FORMAT else None
+
+
+def describe_resume(model: Any, state: dict[str, Any] | None) -> list[str]:
+    """What a resume from ``state`` cannot restore, as sentences for the run's log (empty: exact)."""
+    if state is None:
+        return ["the checkpoint has no resume state (a plain model or an older version): resuming approximately"]
+    if not is_exact(model, state):
+        return [
+            f"the training env ({state['env_type']}) cannot save its state (no get_resume_state; SuperSuit-backed "
+            "envs): resuming approximately, the training env restarts from a reset"
+        ]
+    return []
+
+
+class RunCheckpointCallback(BaseCallback):
+    """Resumable checkpoints at rollout starts, the restore of a resumed run, and stopping on request.
+
+    At the start of a rollout (after the first, or after the one resumed from), when ``save_freq`` agent-steps have
+    passed since the last checkpoint (``save_freq=0``: at every rollout), the model and its resume state
+    (:func:`save_checkpoint`) are written to ``folder / name.format(steps=<agent-steps>)``. On the first rollout after
+    resuming from a checkpoint, its resume state is restored instead, at the very point it was taken.
+    :meth:`request_stop` (e.g. from a Ctrl-C handler) makes the next rollout start write a checkpoint whatever the
+    frequency, and training stop there.
+
+    :param folder: where checkpoints go
+    :param name: file name of a checkpoint, ``{steps}`` replaced by its agent-steps (e.g. ``"rl_model_{steps}_steps.zip"``)
+    :param save_freq: agent-steps between checkpoints (0: every rollout)
+    :param resumed_at: agent-steps of the checkpoint resumed from (0 for a fresh start)
+    :param resume_state: the checkpoint's resume state, restored at the first rollout start (``None``: nothing to restore)
+    :param extras: other objects whose state checkpoints carry, by name (an evaluation callback, ...)
+    :param previous_wall_s: wall time of the run before this process (``time/time_elapsed`` and ``time/fps`` go on
+        from it after a restore)
+    :param on_checkpoint: called with the agent-steps after each checkpoint (e.g. a clock's tick)
+    :param log: where resume messages go
+    """
+
+    def __init__(
+        self,
+        folder: str | Path,
+        name: str,
+        save_freq: int = 0,
+        resumed_at: int = 0,
+        resume_state: dict[str, Any] | None = None,
+        extras: dict[str, Resumable] | None = None,
+        previous_wall_s: float | None = None,
+        on_checkpoint: Callable[[int], None] | None = None,
+        log: Callable[[str], None] = print,
+    ) -> None:
+        super().__init__()
+        if isinstance(save_freq, bool) or not isinstance(save_freq, int) or save_freq < 0:
+            raise ValueError(f"save_freq must be an integer >= 0 agent-steps (0: every rollout), got {save_freq!r}.")
+        self.folder = Path(folder)
+        self.name = name
+        self.save_freq = save_freq
+        self.resumed_at = resumed_at
+        self.resume_state = resume_state
+        self.extras = dict(extras or {})
+        self.previous_wall_s = previous_wall_s
+        self.on_checkpoint = on_checkpoint
+        self.log = log
+        self.last_saved = resumed_at
+        self.stop_requested = False
+        self.stopped_at: Path | None = None
+
+    def path(self, steps: int) -> Path:
+        """The checkpoint file for ``steps`` agent-steps."""
+        return self.folder / self.name.format(steps=steps)
+
+    def request_stop(self) -> None:
+        """Write a checkpoint at the next rollout start and stop training there."""
+        self.stop_requested = True
+
+    def _on_rollout_start(self) -> None:
+        steps = self.model.num_timesteps
+        if self.resume_state is not None:  # the first rollout after resuming: the moment the checkpoint was taken
+            restore_resume_state(self.model, self.resume_state, self.log, self.extras)
+            self.resume_state = None
+            if self.previous_wall_s is not None:  # time/time_elapsed and time/fps over all segments
+                self.model.start_time = time.time_ns() - int(self.previous_wall_s * 1e9)
+            if not self.stop_requested:
+                return
+        due = steps > self.resumed_at and steps - self.last_saved >= self.save_freq
+        if due or self.stop_requested:
+            self.save(steps)
+            if self.stop_requested:
+                self.stopped_at = self.path(steps)
+
+    def save(self, steps: int) -> Path:
+        """Write the checkpoint of the current state (call it at a rollout start)."""
+        path = self.path(steps)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        save_checkpoint(self.model, path, self.extras)
+        self.last_saved = steps
+        if self.on_checkpoint is not None:
+            self.on_checkpoint(steps)
+        return path
+
+    def _on_step(self) -> bool:
+        return self.stopped_at is None
+
+
+# ---------------------------------------------------------------------------------------------------- progress.csv
+class ContinuedCSVOutputFormat(CSVOutputFormat):
+    """SB3's CSV writer going on with an existing file (header ``keys`` and its rows kept) instead of starting a new
+    one (SB3 opens with ``"w+"``). New keys are added as SB3 adds them (the file is rewritten with a wider header).
+
+    :param filename: the CSV file
+    :param keys: its header (empty: start a new file)
+    """
+
+    def __init__(self, filename: str, keys: list[str]) -> None:
+        # not super().__init__, which opens with "w+" (truncates); the logger closes the file
+        self.file = open(filename, "r+" if keys else "w+")
+        self.file.seek(0, os.SEEK_END)
+        self.keys = list(keys)
+        self.separator = ","
+        self.quotechar = '"'
+
+
+class ContinuedLogger(Logger):
+    """SB3's logger whose ``time/iterations`` counts on from the earlier segments of a resumed run.
+
+    :param folder: the logging folder
+    :param output_formats: the writers
+    :param iteration_offset: rollouts done before this segment
+    """
+
+    def __init__(self, folder: str | None, output_formats: list[KVWriter], iteration_offset: int = 0) -> None:
+        super().__init__(folder, output_formats)
+        self.iteration_offset = iteration_offset
+
+    def record(self, key: str, value: Any, exclude: str | tuple[str, ...] | None = None) -> None:
+        if key == "time/iterations":
+            value = value + self.iteration_offset
+        super().record(key, value, exclude)
+
+
+def truncate_progress(path: Path, done_steps: int) -> list[str]:
+    """Keep the rows of a ``progress.csv`` dumped up to ``done_steps`` agent-steps (the checkpoint); drop later ones
+    and a last line cut by a kill. Returns the header (empty when there is nothing to keep).
+
+    :param path: the run's ``progress.csv``
+    :param done_steps: agent-steps of the checkpoint
+    """
+    if not path.is_file():
+        return []
+    lines = path.read_text().split("\n")[:-1]  # the text after the last newline is a row cut by a kill
+    if not lines:
+        return []
+    keys = next(csv.reader([lines[0]]))
+    column = keys.index("time/total_timesteps") if "time/total_timesteps" in keys else None
+    kept = [lines[0]]
+    for line in lines[1:]:
+        values = next(csv.reader([line]), [])
+        if len(values) != len(keys):
+            continue
+        if column is not None and values[column] != "" and float(values[column]) > done_steps:
+            continue
+        kept.append(line)
+    atomic_write_text(path, "".join(line + "\n" for line in kept))
+    return keys
+
+
+def progress_logger(
+    folder: Path, done_steps: int | None, iteration_offset: int, output_formats: list[KVWriter] | None = None
+) -> Logger:
+    """The run's logger: ``progress.csv`` started anew (``done_steps`` ``None``) or continued after its rows up to the
+    checkpoint, plus ``output_formats`` (stdout, tensorboard, ...).
+
+    :param folder: the run's folder
+    :param done_steps: agent-steps of the checkpoint resumed from, ``None`` for a fresh start
+    :param iteration_offset: rollouts done before the checkpoint
+    :param output_formats: the logger's other writers
+    """
+    path = folder / "progress.csv"
+    keys = truncate_progress(path, done_steps) if done_steps is not None else []
+    formats: list[KVWriter] = [*(output_formats or []), ContinuedCSVOutputFormat(str(path), keys)]
+    return ContinuedLogger(str(folder), formats, iteration_offset)
+
+
+# ---------------------------------------------------------------------------------------------------- wall time
+class SegmentClock:
+    """Wall time of a run over its segments (one per process that worked on it), kept in ``segments.json``.
+
+    A segment's time is recorded at each checkpoint, evaluation and at the end; a killed segment counts up to its
+    last record.
+
+    :param path: the run's ``segments.json``
+    :param resumed_at: agent-steps this segment starts from
+    """
+
+    def __init__(self, path: Path, resumed_at: int) -> None:
+        self.path = path
+        self.segments: list[dict[str, Any]] = json.loads(path.read_text()) if path.is_file() else []
+        self.previous_s = float(sum(segment["wall_s"] for segment in self.segments))
+        self.start = time.time()
+        self.segments.append({"started": utc_stamp(), "resumed_at": resumed_at, "reached": resumed_at, "wall_s": 0.0})
+        self.tick(resumed_at)
+
+    def tick(self, steps: int) -> None:
+        """Record this segment's wall time so far and the agent-steps it reached.
+
+        :param steps: agent-steps reached
+        """
+        self.segments[-1].update(reached=int(steps), wall_s=round(time.time() - self.start, 3))
+        atomic_write_text(self.path, json.dumps(self.segments, indent=1) + "\n")
+
+    @property
+    def total_s(self) -> float:
+        """Wall time over every segment, this one up to its last record."""
+        return self.previous_s + float(self.segments[-1]["wall_s"])

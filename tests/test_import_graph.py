@@ -1,0 +1,184 @@
+"""The package's import graph: no circle of modules, and ``sb3_saeir.common`` imports only ``sb3_saeir.common``.
+
+Every ``sb3_saeir/**/*.py`` is parsed with :mod:`ast`; every ``import`` / ``from ... import`` of a ``sb3_saeir``
+module counts, at module level or inside a function (relative imports resolved). ``from pkg import name`` is an
+import of ``pkg.name`` when that is a module of the package, else of ``pkg``. The implicit import of parent packages
+(``import a.b.c`` first runs ``a/__init__.py``) is left out, and so is a module importing itself.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import sb3_saeir
+
+PACKAGE = "sb3_saeir"
+PACKAGE_ROOT = Path(sb3_saeir.__file__).parent
+# Every module under this package may import only modules under it.
+SELF_CONTAINED = "sb3_saeir.common"
+
+Graph = dict[str, set[str]]
+
+
+def module_name(path: Path, root: Path = PACKAGE_ROOT) -> str:
+    """The dotted name of a source file (``sb3_saeir/common/vec_env.py`` -> ``sb3_saeir.common.vec_env``).
+
+    :param path: the file
+    :param root: the package's folder
+    """
+    parts = [root.name, *path.relative_to(root).with_suffix("").parts]
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def package_sources(root: Path = PACKAGE_ROOT) -> dict[str, Path]:
+    """Every module of the package, by dotted name.
+
+    :param root: the package's folder
+    """
+    return {module_name(path, root): path for path in sorted(root.rglob("*.py"))}
+
+
+def from_import_base(node: ast.ImportFrom, module: str, is_package: bool) -> str:
+    """The absolute module a ``from ... import`` statement imports from.
+
+    :param node: the statement
+    :param module: the dotted name of the module holding it
+    :param is_package: whether that module is a package's ``__init__``
+    """
+    if node.level == 0:
+        return node.module or ""
+    anchor = module.split(".")
+    if not is_package:
+        anchor = anchor[:-1]
+    anchor = anchor[: len(anchor) - (node.level - 1)]
+    return ".".join([*anchor, node.module] if node.module else anchor)
+
+
+def is_in_package(name: str, package: str = PACKAGE) -> bool:
+    """Whether a dotted name is the package or one of its modules.
+
+    :param name: the dotted name
+    :param package: the package
+    """
+    return name == package or name.startswith(package + ".")
+
+
+def imports_of(source: str, module: str, is_package: bool, known_modules: set[str]) -> set[str]:
+    """The package modules one source file imports, anywhere in the file.
+
+    :param source: the file's text
+    :param module: its dotted name
+    :param is_package: whether it is a package's ``__init__``
+    :param known_modules: every module of the package (``from pkg import name`` counts as ``pkg.name`` when listed)
+    :return: the imported modules, the module itself left out
+    """
+    imported: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            imported.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = from_import_base(node, module, is_package)
+            for alias in node.names:
+                submodule = f"{base}.{alias.name}"
+                imported.add(submodule if submodule in known_modules else base)
+    return {name for name in imported if is_in_package(name) and name != module}
+
+
+def import_graph(root: Path = PACKAGE_ROOT) -> Graph:
+    """Module -> the package modules it imports, for every module of the package.
+
+    :param root: the package's folder
+    """
+    sources = package_sources(root)
+    known = set(sources)
+    return {
+        module: imports_of(path.read_text(encoding="utf-8"), module, path.name == "__init__.py", known)
+        for module, path in sources.items()
+    }
+
+
+def find_cycle(graph: Graph) -> list[str] | None:
+    """One circle of the graph, or ``None`` when it has none.
+
+    :param graph: module -> the modules it imports
+    :return: the modules of the circle, the first one repeated at the end (``["a", "b", "a"]``)
+    """
+    done: set[str] = set()
+
+    def visit(node: str, path: list[str]) -> list[str] | None:
+        if node in path:
+            return [*path[path.index(node) :], node]
+        if node in done:
+            return None
+        for target in sorted(graph.get(node, ())):
+            cycle = visit(target, [*path, node])
+            if cycle is not None:
+                return cycle
+        done.add(node)
+        return None
+
+    for start in sorted(graph):
+        cycle = visit(start, [])
+        if cycle is not None:
+            return cycle
+    return None
+
+
+def outside_imports(graph: Graph, package: str) -> dict[str, set[str]]:
+    """The imports from modules under ``package`` of modules outside it.
+
+    :param graph: module -> the modules it imports
+    :param package: the dotted name of the subpackage
+    :return: module -> the outside modules it imports, only for modules that import one
+    """
+    outside = {
+        module: {target for target in targets if not is_in_package(target, package)}
+        for module, targets in graph.items()
+        if is_in_package(module, package)
+    }
+    return {module: targets for module, targets in outside.items() if targets}
+
+
+def test_graph_sees_every_kind_of_import() -> None:
+    source = textwrap.dedent(
+        """
+        import sb3_saeir.a
+        from . import b
+        from .c import name
+        def f():
+            from sb3_saeir.d import e
+        import numpy
+        """
+    )
+    known = {"sb3_saeir.a", "sb3_saeir.pkg", "sb3_saeir.pkg.b", "sb3_saeir.pkg.c", "sb3_saeir.d", "sb3_saeir.d.e"}
+    imported = imports_of(source, "sb3_saeir.pkg.x", is_package=False, known_modules=known)
+    assert imported == {"sb3_saeir.a", "sb3_saeir.pkg.b", "sb3_saeir.pkg.c", "sb3_saeir.d.e"}
+
+
+def test_find_cycle_finds_a_two_module_cycle() -> None:
+    graph = {"sb3_saeir.a": {"sb3_saeir.b"}, "sb3_saeir.b": {"sb3_saeir.a"}, "sb3_saeir.c": {"sb3_saeir.a"}}
+    assert find_cycle(graph) == ["sb3_saeir.a", "sb3_saeir.b", "sb3_saeir.a"]
+    assert find_cycle({"sb3_saeir.a": {"sb3_saeir.b"}, "sb3_saeir.b": set()}) is None
+
+
+def test_package_has_no_import_cycle() -> None:
+    cycle = find_cycle(import_graph())
+    assert cycle is None, f"import circle: {' -> '.join(cycle or [])}"
+
+
+def test_common_imports_only_common() -> None:
+    outside = outside_imports(import_graph(), SELF_CONTAINED)
+    assert not outside, f"{SELF_CONTAINED} imports modules outside it: {outside}"
+
+
+def test_importing_common_alone_registers_the_packaged_tasks() -> None:
+    # common does not import envs: the registration comes from sb3_saeir/__init__.py, run by any sb3_saeir import.
+    code = "from sb3_saeir.common.registry import list_tasks; print(' '.join(list_tasks()))"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert {"cn-sparse-n3", "cn-sparse-n4"} <= set(result.stdout.split())

@@ -1,21 +1,10 @@
-"""Tasks: PettingZoo parallel envs and the registry of task ids (importing this registers the package's tasks)."""
+"""Tasks: PettingZoo parallel envs and the registry of task ids (importing this registers the package's tasks).
 
-from sb3_saeir.envs.registry import (
-    TaskSpec,
-    get_native_vec_env_factory,
-    get_task_factory,
-    get_task_spec,
-    list_tasks,
-    make_task,
-    register_task,
-)
+The registry's functions (``register_task``, ``list_tasks``, ``get_task_spec``, ``get_task_factory``,
+``get_native_vec_env_factory``, ``make_task``, ``TaskSpec``) are re-exported from :mod:`sb3_saeir.envs.registry`.
+"""
 
-__all__ = [
-    "TaskSpec",
-    "get_native_vec_env_factory",
-    "get_task_factory",
-    "get_task_spec",
-    "list_tasks",
-    "make_task",
-    "register_task",
-]
+from sb3_saeir.envs import registry
+from sb3_saeir.envs.registry import *  # noqa: F403 (the registry's API, listed in its __all__)
+
+__all__ = list(registry.__all__)

@@ -75,6 +75,23 @@ def scale_advantage_weights(advantages: th.Tensor) -> th.Tensor:
     return th.softmax(th.logsumexp(advantages.detach(), dim=0), dim=0)
 
 
+def in_joint_layout(values: th.Tensor, k: int, n_scales: int) -> th.Tensor:
+    """Scale ``k``'s values ``(L, B, N)`` seen through the ``(L, B, N, K)`` stack of every scale's values, as the
+    update computed them before it back-propagated one network at a time.
+
+    The values are unchanged; what this keeps is the layout of the gradient that reaches the critic's value head (a
+    stride-K slice), so that the head's bias gradient is summed in the same order as before, bit for bit (the
+    golden runs, ``tests/test_golden.py``, amplify a last-bit difference through the group scale's top-k
+    incidence). The other scales enter the stack detached: no gradient reaches them.
+
+    :param values: the scale's values, ``(L, B, N)``
+    :param k: the scale's index
+    :param n_scales: the number of scales K
+    """
+    stacked = th.stack([values if j == k else values.detach() for j in range(n_scales)], dim=-1)  # (L, B, N, K)
+    return stacked[..., k]
+
+
 def clipped_value_loss(
     values: th.Tensor,
     old_values: th.Tensor,
@@ -693,7 +710,7 @@ class MAPPO(OnPolicyAlgorithm):
         pg_losses, entropy_losses, clip_fractions, approx_kl_divs = [], [], [], []
         value_losses: dict[str, list[float]] = {scale: [] for scale in scales}
         advantage_weights: dict[str, list[float]] = {scale: [] for scale in scales}
-        loss = th.zeros(())
+        loss_value = 0.0
         continue_training = True
         for epoch in range(self.n_epochs):
             for samples in self.rollout_buffer.get(self.n_minibatches, self.normalize_advantage):
@@ -703,42 +720,23 @@ class MAPPO(OnPolicyAlgorithm):
                 def masked_mean(x: th.Tensor, mask: th.Tensor = mask, n_valid: th.Tensor = n_valid) -> th.Tensor:
                     return (x * mask).sum() / n_valid
 
-                values, log_prob, entropy = self.policy.evaluate_actions(
-                    samples.observations, samples.actions, samples.actor_states, samples.critic_states, samples.episode_starts
+                # the actor: clipped surrogate objective and entropy bonus (the critics come one by one below)
+                log_prob, entropy = self.policy.evaluate_actor(
+                    samples.observations, samples.actions, samples.actor_states, samples.episode_starts
                 )
                 # W_K-mixed advantages: (L, B, N, K) -> (L, B, N); the weights from the valid rows (n_valid_rows * N, K)
                 advantages = samples.advantages
                 weights = scale_advantage_weights(advantages[samples.mask].reshape(-1, self.policy.n_scales))  # (K,)
                 mixed_advantages = (advantages * weights).sum(dim=-1)
 
-                # clipped surrogate objective
                 ratio = th.exp(log_prob - samples.old_log_prob)
                 policy_loss_1 = mixed_advantages * ratio
                 policy_loss_2 = mixed_advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
                 policy_loss = -masked_mean(th.min(policy_loss_1, policy_loss_2))
                 pg_losses.append(policy_loss.item())
                 clip_fractions.append(masked_mean((th.abs(ratio - 1) > clip_range).float()).item())
-
-                # entropy bonus
                 entropy_loss = -masked_mean(entropy)
                 entropy_losses.append(entropy_loss.item())
-
-                # clipped value loss per scale, on returns normalised by the scale's ValueNorm (updated here)
-                scale_losses = []
-                for k, scale in enumerate(scales):
-                    returns = samples.returns[..., k]
-                    if self.normalize_values:
-                        value_norm = self.policy.value_norm(scale)
-                        value_norm.update(returns[samples.mask])
-                        returns = value_norm.normalize(returns)
-                    per_sample = clipped_value_loss(
-                        values[..., k], samples.old_values[..., k], returns, clip_range_vf, self.value_loss, self.huber_delta
-                    )
-                    scale_losses.append(masked_mean(per_sample))
-                    value_losses[scale].append(scale_losses[-1].item())
-                    advantage_weights[scale].append(weights[k].item())
-
-                loss = policy_loss + self.ent_coef * entropy_loss + self.vf_coef * th.stack(scale_losses).sum()
 
                 # approximate KL (Schulman's estimator), for logging and early stopping
                 with th.no_grad():
@@ -751,9 +749,35 @@ class MAPPO(OnPolicyAlgorithm):
                         print(f"Early stopping at step {epoch} due to reaching max kl: {approx_kl_div:.2f}")
                     break
 
-                # optimisation step; gradient norms clipped per network (the networks share no parameters)
+                # Back-propagate one network at a time: the networks share no parameters, so each one's gradient is
+                # that of the whole loss, and only one network's activations are alive at once.
                 self.policy.optimizer.zero_grad()
-                loss.backward()
+                actor_loss = policy_loss + self.ent_coef * entropy_loss
+                actor_loss.backward()
+                loss_value = actor_loss.item()
+
+                # clipped value loss per scale, on returns normalised by the scale's ValueNorm (updated here)
+                for k, scale in enumerate(scales):
+                    values = in_joint_layout(
+                        self.policy.evaluate_critic(k, samples.observations, samples.critic_states[k], samples.episode_starts),
+                        k,
+                        len(scales),
+                    )  # (L, B, N)
+                    returns = samples.returns[..., k]
+                    if self.normalize_values:
+                        value_norm = self.policy.value_norm(scale)
+                        value_norm.update(returns[samples.mask])
+                        returns = value_norm.normalize(returns)
+                    per_sample = clipped_value_loss(
+                        values, samples.old_values[..., k], returns, clip_range_vf, self.value_loss, self.huber_delta
+                    )
+                    scale_loss = masked_mean(per_sample)
+                    (self.vf_coef * scale_loss).backward()
+                    value_losses[scale].append(scale_loss.item())
+                    advantage_weights[scale].append(weights[k].item())
+                    loss_value += self.vf_coef * value_losses[scale][-1]
+
+                # optimisation step; gradient norms clipped per network
                 th.nn.utils.clip_grad_norm_(self.policy.actor_parameters(), self.max_grad_norm)
                 for scale in scales:
                     th.nn.utils.clip_grad_norm_(self.policy.critic_parameters(scale), self.max_grad_norm)
@@ -775,7 +799,7 @@ class MAPPO(OnPolicyAlgorithm):
         self.logger.record("train/policy_gradient_loss", float(np.mean(pg_losses)))
         self.logger.record("train/approx_kl", float(np.mean(approx_kl_divs)))
         self.logger.record("train/clip_fraction", float(np.mean(clip_fractions)))
-        self.logger.record("train/loss", loss.item())
+        self.logger.record("train/loss", loss_value)
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/clip_range", clip_range)
         self.logger.record("train/clip_range_vf", clip_range_vf)

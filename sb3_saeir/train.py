@@ -99,6 +99,8 @@ def check_arguments(args: argparse.Namespace) -> None:
     check_folder("-f/--log-folder", args.log_folder)
     check_folder("-tb/--tensorboard-log", args.tensorboard_log)
     check_device(args.device)
+    if args.resume is not None and args.optimize:
+        raise ConfigError("--resume continues one training run; it does not apply to --optimize (drop one of them).")
     if args.optimize:
         check_range("--n-trials", args.n_trials, 1)
         check_range("--n-evaluations", args.n_evaluations, 1)

@@ -210,6 +210,9 @@ RAW_TRAIN = [
     (["--optimize", "--n-trials", "1", "--storage", "foo://x"], "--storage 'foo://x' is not a database URL"),
     (["--optimize", "--n-trials", "1", "--n-evaluations", "0"], "--n-evaluations must be >= 1, got 0"),
     (["--optimize", "--n-jobs", "0"], "--n-jobs must be >= 1"),
+    (["--optimize", "--resume"], "--resume continues one training run; it does not apply to --optimize"),
+    (["--resume", "1.5"], "argument --resume: '1.5' is not a whole number"),
+    (["--resume"], "--resume: no run of saeir_ppo on cn-sparse-n3 in logs/saeir_ppo"),
 ]
 
 

@@ -141,10 +141,10 @@ class GroupRecorder:
         self.calls = []
         original = ScaleCritic.forward
 
-        def forward(critic, obs, hidden, episode_starts, gumbel_noise=True):
+        def forward(critic, obs, hidden, episode_starts, gumbel_noise=True, gumbel_uniform=None):
             if critic.training:
                 self.calls.append(obs.detach().numpy().copy())
-            return original(critic, obs, hidden, episode_starts, gumbel_noise=gumbel_noise)
+            return original(critic, obs, hidden, episode_starts, gumbel_noise=gumbel_noise, gumbel_uniform=gumbel_uniform)
 
         monkeypatch.setattr(ScaleCritic, "forward", forward)
 

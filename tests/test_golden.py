@@ -30,6 +30,13 @@ SEED = 3
 TINY_POLICY = {"hidden_size": 16}
 # Bit-identical is expected; 1e-6 (relative 1e-5) leaves room for a reordering of float sums.
 ATOL, RTOL = 1e-6, 1e-5
+# SAEIR_PPO's group critic rebuilds its hyperedges by a top-k of cosine similarities at every step, so a last-bit change
+# of a parameter can swap two nearly tied agents of an edge and move the second iteration's arrays by orders more
+# than the change itself. Since 0.2.0a0 the update skips the padded rows of the last chunk and sums the rest in
+# another order: its gradients stay within 5e-7 of the padded update (tests/test_update_equivalence.py), and the
+# two-iteration arrays here move by up to 1.1e-4 (relative 5e-4). The tolerance for it is 1e-3: a change of what is
+# computed (a formula, a missing term, another noise draw) moves them by far more.
+METHOD_TOLERANCES = {"saeir_ppo": (1e-3, 1e-3)}
 
 METHODS: dict[str, dict[str, Any]] = {
     "saeir_ppo": {"algo": SAEIR_PPO, "policy": "MSHGPolicy", "kwargs": {}, "callback": None},
@@ -107,8 +114,9 @@ def test_two_iterations_match_golden_arrays(method):
     model, arrays = golden_run(method)
     model.env.close()
     assert sorted(arrays) == sorted(expected.files), "the set of parameters changed (renamed or new tensors)"
+    atol, rtol = METHOD_TOLERANCES.get(method, (ATOL, RTOL))
     for key in expected.files:
-        np.testing.assert_allclose(arrays[key], expected[key], atol=ATOL, rtol=RTOL, err_msg=f"{method}: {key}")
+        np.testing.assert_allclose(arrays[key], expected[key], atol=atol, rtol=rtol, err_msg=f"{method}: {key}")
 
 
 @pytest.mark.parametrize("method, algo", [("saeir_ppo", SAEIR_PPO), ("mappo", MAPPO)])

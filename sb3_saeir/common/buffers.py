@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Generator
+from typing import NamedTuple
 
 import numpy as np
 import torch as th
@@ -21,6 +22,55 @@ def n_blocks(n_steps: int, n_games: int, data_chunk_length: int) -> int:
     :param data_chunk_length: steps per chunk (the last chunk of a game may be shorter, and is padded)
     """
     return n_games * -(-n_steps // data_chunk_length)
+
+
+class ChunkGroup(NamedTuple):
+    """The blocks of a minibatch with the same number of valid rows, cut to those rows (:func:`split_by_valid_length`).
+
+    :param length: valid rows of each block (the group's L)
+    :param blocks: the blocks' positions in the minibatch, ``(B_g,)``
+    :param samples: their data, without padded rows: ``observations (length, B_g, N, d)`` and so on
+    """
+
+    length: int
+    blocks: th.Tensor
+    samples: GroupedRecurrentSamples
+
+
+def split_by_valid_length(samples: GroupedRecurrentSamples) -> list[ChunkGroup]:
+    """The blocks of a minibatch grouped by their number of valid rows, each group cut to its valid rows.
+
+    When ``n_steps`` is not a multiple of ``data_chunk_length`` every game's last chunk is shorter and padded (with
+    ``n_steps=25`` and chunks of 10, a third of the blocks carry 5 padded rows: 17% of the rows); the update runs the
+    networks on each group in turn, so that no padded row is computed. A block's valid rows are always its first ones.
+    A minibatch without padding is one group: the samples themselves, not a copy.
+
+    :param samples: a minibatch of :meth:`GroupedRecurrentRolloutBuffer.get`
+    :return: the groups, longest first
+    """
+    n_steps, n_blocks = samples.mask.shape
+    lengths = samples.mask.sum(dim=0)  # (B,) valid rows per block
+    if bool((lengths == n_steps).all()):
+        return [ChunkGroup(n_steps, th.arange(n_blocks, device=lengths.device), samples)]
+    groups = []
+    for length in sorted({int(value) for value in lengths.tolist()}, reverse=True):
+        blocks = (lengths == length).nonzero().squeeze(-1)  # (B_g,)
+        part = GroupedRecurrentSamples(  # (L, B, ...) -> (length, B_g, ...) for the per-step fields
+            observations=samples.observations[:length, blocks],
+            actions=samples.actions[:length, blocks],
+            old_log_prob=samples.old_log_prob[:length, blocks],
+            old_values=samples.old_values[:length, blocks],
+            advantages=samples.advantages[:length, blocks],
+            returns=samples.returns[:length, blocks],
+            episode_starts=samples.episode_starts[:length, blocks],
+            actor_states=samples.actor_states[blocks],  # (B_g, N, H)
+            critic_states=samples.critic_states[:, blocks],  # (K, B_g, N, H)
+            mask=samples.mask[:length, blocks],
+            game_indices=samples.game_indices[blocks],
+            time_indices=samples.time_indices[:length, blocks],
+        )
+        groups.append(ChunkGroup(length, blocks, part))
+    return groups
 
 
 class GroupedRecurrentRolloutBuffer(RolloutBuffer):

@@ -128,6 +128,7 @@ def gumbel_softmax(
     noise: bool = True,
     generator: th.Generator | None = None,
     eps: float = 1e-10,
+    uniform: th.Tensor | None = None,
 ) -> th.Tensor:
     r"""
     Soft Gumbel-softmax over the last axis (the edge-type axis, spec §1.5).
@@ -145,11 +146,14 @@ def gumbel_softmax(
     :param noise: Whether to add Gumbel noise.
     :param generator: Optional random generator for U (drawn on the generator's device, then moved).
     :param eps: The :math:`\varepsilon` of the noise formula.
+    :param uniform: The draws U, of the shape of ``logits`` (drawn here when ``None``): the update draws them once for
+        a padded minibatch and hands each part of it its rows, so that the noise is that of the padded batch.
     :return: Type probabilities of the same shape as ``logits``, summing to 1 over the last axis.
     """
     if noise:
-        draw_device = generator.device if generator is not None else logits.device
-        uniform = th.rand(logits.shape, generator=generator, device=draw_device, dtype=logits.dtype).to(logits.device)
+        if uniform is None:
+            draw_device = generator.device if generator is not None else logits.device
+            uniform = th.rand(logits.shape, generator=generator, device=draw_device, dtype=logits.dtype).to(logits.device)
         logits = logits - th.log(eps - th.log(uniform + eps))
     return th.softmax(logits / tau, dim=-1)
 

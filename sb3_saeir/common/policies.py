@@ -377,22 +377,50 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         entropy = entropy.reshape(n_steps, n_blocks, n_agents) if entropy is not None else -log_prob
         return log_prob, entropy
 
-    def evaluate_critic(self, k: int, obs: th.Tensor, critic_states: th.Tensor, episode_starts: th.Tensor) -> th.Tensor:
+    def evaluate_critic(
+        self,
+        k: int,
+        obs: th.Tensor,
+        critic_states: th.Tensor,
+        episode_starts: th.Tensor,
+        gumbel_uniform: th.Tensor | None = None,
+    ) -> th.Tensor:
         """Re-run critic scale ``k`` over chunks of whole games (the algorithm back-propagates one network at a time).
 
         :param k: index of the scale in :attr:`scales`
         :param obs: ``(L, B, N, d)``
         :param critic_states: ``(B, N, H)`` the scale's stored states at each chunk's first step
         :param episode_starts: ``(L, B, N)``
+        :param gumbel_uniform: the critic's Gumbel draws, ``(L * B, E, T_K)`` (:meth:`draw_gumbel_uniform`; drawn by
+            the critic when ``None``)
         :return: normalised values ``(L, B, N)``
         """
         n_steps, n_blocks, n_agents = obs.shape[:3]
         critic = list(self.critics.values())[k]
         # (L, B, N, *obs_shape) -> (L, B, N, d)
         values, _ = critic(
-            obs.reshape(n_steps, n_blocks, n_agents, -1), critic_states, episode_starts, gumbel_noise=self.critic_gumbel_noise
+            obs.reshape(n_steps, n_blocks, n_agents, -1),
+            critic_states,
+            episode_starts,
+            gumbel_noise=self.critic_gumbel_noise,
+            gumbel_uniform=gumbel_uniform,
         )
         return values
+
+    def draw_gumbel_uniform(self, k: int, n_steps: int, n_blocks: int) -> th.Tensor | None:
+        """The uniform draws critic scale ``k`` makes for its Gumbel noise over ``n_steps`` steps of ``n_blocks``
+        blocks, ``(n_steps, n_blocks, E, T_K)``, drawn from the global torch generator as the critic itself would;
+        ``None`` for a critic without noise.
+
+        The update draws them once for the padded minibatch and gives every part of it its rows, so that running the
+        critic on the parts (no padded rows) sees the noise of the whole.
+        """
+        critic = list(self.critics.values())[k]
+        shape = getattr(critic, "gumbel_shape", None)
+        if shape is None or not self.critic_gumbel_noise:
+            return None
+        uniform = th.rand((n_steps * n_blocks, *shape), device=self.device)  # as the critic draws: rows (step, block)
+        return uniform.reshape(n_steps, n_blocks, *shape)
 
     # ------------------------------------------------------------------------------------------------ inference
     def get_distribution(  # type: ignore[override]

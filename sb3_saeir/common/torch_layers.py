@@ -254,20 +254,38 @@ class ScaleCritic(nn.Module):
         nn.init.zeros_(self.value_net.bias)
 
     def forward(
-        self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool = True
+        self,
+        obs: th.Tensor,
+        hidden: th.Tensor,
+        episode_starts: th.Tensor,
+        gumbel_noise: bool = True,
+        gumbel_uniform: th.Tensor | None = None,
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         :param obs: Critic inputs ``(T, G, N, obs_dim)`` (G games, N agents).
         :param hidden: GRU states before step 0, ``(G, N, H)``.
         :param episode_starts: ``(T, G, N)``, 1 where a new episode starts.
         :param gumbel_noise: Draw Gumbel noise for the edge types (authors: always); False = plain softmax.
+        :param gumbel_uniform: The noise's uniform draws, ``(T * G, *self.gumbel_shape)`` (drawn here when ``None``).
         :return: Values ``(T, G, N)`` and the new GRU states ``(G, N, H)``.
         """
-        latent, new_hidden = self.forward_latent(obs, hidden, episode_starts, gumbel_noise)
+        latent, new_hidden = self.forward_latent(obs, hidden, episode_starts, gumbel_noise, gumbel_uniform)
         return self.value_net(latent).squeeze(-1), new_hidden  # (T, G, N)
 
+    @property
+    def gumbel_shape(self) -> tuple[int, int]:
+        """``(E, T_K)``: hyperedges and edge types of one hypergraph, the shape of its Gumbel draws."""
+        group_as_team = self.scale == "group" and self.group_size >= self.n_agents
+        n_edges = 1 if self.scale == "team" or group_as_team else self.n_agents
+        return n_edges, self.n_types
+
     def forward_latent(
-        self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool = True
+        self,
+        obs: th.Tensor,
+        hidden: th.Tensor,
+        episode_starts: th.Tensor,
+        gumbel_noise: bool = True,
+        gumbel_uniform: th.Tensor | None = None,
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         Node representations :math:`\bar s_i` before the value head.
@@ -276,12 +294,13 @@ class ScaleCritic(nn.Module):
         :param hidden: GRU states ``(G, N, H)``.
         :param episode_starts: ``(T, G, N)``.
         :param gumbel_noise: Whether to draw Gumbel noise.
+        :param gumbel_uniform: The noise's uniform draws, ``(T * G, E, T_K)`` (drawn here when ``None``).
         :return: Latent ``(T, G, N, H)`` and the new GRU states ``(G, N, H)``.
         """
         n_steps, n_games, n_agents = obs.shape[:3]
         features, new_hidden = self._encode(obs, hidden, episode_starts)  # (T, G, N, H), (G, N, H)
         nodes = features.reshape(n_steps * n_games, n_agents, self.hidden_size)  # (T*G, N, H)
-        latent = self._message_passing(nodes, gumbel_noise)  # (T*G, N, H)
+        latent = self._message_passing(nodes, gumbel_noise, gumbel_uniform)  # (T*G, N, H)
         return latent.reshape(n_steps, n_games, n_agents, self.hidden_size), new_hidden
 
     def _encode(self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
@@ -303,16 +322,17 @@ class ScaleCritic(nn.Module):
         features = out.reshape(n_steps, n_games, n_agents, self.hidden_size)  # (T, G, N, H)
         return features, last.reshape(n_games, n_agents, self.hidden_size)  # (G, N, H)
 
-    def _message_passing(self, nodes: th.Tensor, gumbel_noise: bool) -> th.Tensor:
+    def _message_passing(self, nodes: th.Tensor, gumbel_noise: bool, gumbel_uniform: th.Tensor | None = None) -> th.Tensor:
         r"""
         One round of hypergraph message passing (spec §1.3-§1.6).
 
         :param nodes: GRU features h of the N agents of each hypergraph, ``(B, N, H)``.
         :param gumbel_noise: Whether to draw Gumbel noise.
+        :param gumbel_uniform: The noise's uniform draws, ``(B, E, T_K)`` (drawn here when ``None``).
         :return: Node representations ``(B, N, H)``.
         """
         incidence = build_incidence(self.scale, nodes, self.group_size)  # (B, E, N)
-        edge_weights = self._edge_type_weights(nodes, incidence, gumbel_noise)  # (B, E, T_K)
+        edge_weights = self._edge_type_weights(nodes, incidence, gumbel_noise, gumbel_uniform)  # (B, E, T_K)
         # Kept as a product even for H = I: it fixes the order in which autograd sums the gradients reaching h, and
         # the golden runs (Adam on near-zero gradients) are sensitive to the last bit of that sum.
         raw_edges = incidence @ nodes  # (B, E, H), unweighted member sums of h
@@ -326,13 +346,16 @@ class ScaleCritic(nn.Module):
             return self.node_end(th.cat([messages, nodes], dim=-1) / n_agents)  # (B, N, 2H) -> (B, N, H)
         return self.node_end(edge_to_node(messages, incidence, nodes))  # (B, N, 2H) -> (B, N, H)
 
-    def _edge_type_weights(self, nodes: th.Tensor, incidence: th.Tensor, gumbel_noise: bool) -> th.Tensor:
+    def _edge_type_weights(
+        self, nodes: th.Tensor, incidence: th.Tensor, gumbel_noise: bool, gumbel_uniform: th.Tensor | None = None
+    ) -> th.Tensor:
         r"""
         Attention node→edge embedding, then the scaled Gumbel-softmax edge-type weights (spec §1.4-§1.5).
 
         :param nodes: ``(B, N, H)``.
         :param incidence: ``(B, E, N)``.
         :param gumbel_noise: Whether to draw Gumbel noise.
+        :param gumbel_uniform: The noise's uniform draws, ``(B, E, T_K)`` (drawn here when ``None``).
         :return: Edge-type weights :math:`w_e = \sigma_e \pi_e`, ``(B, E, T_K)``.
         """
         n_batch = nodes.shape[0]
@@ -342,7 +365,7 @@ class ScaleCritic(nn.Module):
             # so the node-to-edge embedding below changes neither the weights nor any gradient; skip it. The Gumbel
             # noise is still drawn (same shape), which keeps the global RNG stream of the full computation.
             type_logits = self.edge_type.constant_output(n_batch, n_edges)  # (B, E, 1)
-            type_probs = gumbel_softmax(type_logits, self.gumbel_tau, noise=gumbel_noise)  # (B, E, 1), all 1
+            type_probs = gumbel_softmax(type_logits, self.gumbel_tau, noise=gumbel_noise, uniform=gumbel_uniform)  # all 1
             return th.sigmoid(self.edge_factor.constant_output(n_batch, n_edges)) * type_probs  # (B, E, 1)
         x = self.node2edge_start(nodes)  # (B, N, H)
         if self.attention.is_constant:  # the released 1-output head (spec §1.8a): same logit for every pair
@@ -363,7 +386,8 @@ class ScaleCritic(nn.Module):
             edges = self.init_fc(weights.diagonal(dim1=-2, dim2=-1).unsqueeze(-1) * x)  # (B, N, 1) * (B, N, H)
         else:
             edges = self.init_fc(node_to_edge(x, incidence, logits))  # (B, E, H)
-        type_probs = gumbel_softmax(self.edge_type(edges), self.gumbel_tau, noise=gumbel_noise)  # (B, E, T_K)
+        type_logits = self.edge_type(edges)  # (B, E, T_K)
+        type_probs = gumbel_softmax(type_logits, self.gumbel_tau, noise=gumbel_noise, uniform=gumbel_uniform)
         return th.sigmoid(self.edge_factor(edges)) * type_probs  # (B, E, 1) * (B, E, T_K)
 
 
@@ -491,13 +515,19 @@ class RecurrentValueCritic(nn.Module):
             nn.utils.parametrizations.spectral_norm(self.value_net)
 
     def forward(
-        self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool = True
+        self,
+        obs: th.Tensor,
+        hidden: th.Tensor,
+        episode_starts: th.Tensor,
+        gumbel_noise: bool = True,
+        gumbel_uniform: th.Tensor | None = None,
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         :param obs: ``(T, G, N, d)``
         :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input)
         :param episode_starts: ``(T, G, N)``
         :param gumbel_noise: unused (same signature as :class:`ScaleCritic`)
+        :param gumbel_uniform: unused (same signature as :class:`ScaleCritic`)
         :return: values ``(T, G, N)`` and new states ``(G, N, H)``
         """
         n_steps, n_games, n_agents, _ = obs.shape

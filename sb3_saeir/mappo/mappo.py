@@ -29,9 +29,10 @@ from stable_baselines3.common.utils import FloatSchedule, explained_variance, ob
 from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
-from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
+from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length
 from sb3_saeir.common.callbacks import episode_metric_means
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
+from sb3_saeir.common.type_aliases import GroupedRecurrentSamples
 from sb3_saeir.common.utils import check_bool
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 from sb3_saeir.intrinsic.elign import ElignCallback
@@ -73,6 +74,14 @@ def scale_advantage_weights(advantages: th.Tensor) -> th.Tensor:
     :return: ``(K,)`` weights summing to 1
     """
     return th.softmax(th.logsumexp(advantages.detach(), dim=0), dim=0)
+
+
+def in_order(terms: list[th.Tensor]) -> th.Tensor:
+    """``terms[0] + terms[1] + ...``, left to right (one term: the term itself, so one group sums as the whole batch)."""
+    total = terms[0]
+    for term in terms[1:]:
+        total = total + term
+    return total
 
 
 def in_joint_layout(values: th.Tensor, k: int, n_scales: int) -> th.Tensor:
@@ -714,35 +723,19 @@ class MAPPO(OnPolicyAlgorithm):
         continue_training = True
         for epoch in range(self.n_epochs):
             for samples in self.rollout_buffer.get(self.n_minibatches, self.normalize_advantage):
-                mask = samples.mask[:, :, None].expand_as(samples.old_log_prob).float()  # (L, B, N)
-                n_valid = mask.sum()
+                # the networks run on the blocks grouped by valid length: no padded row is computed
+                groups = split_by_valid_length(samples)
+                n_valid = samples.mask.sum() * self.policy.n_agents  # valid (step, block, agent) rows
+                # W_K-mixed advantages: the weights from the valid rows (n_valid_rows * N, K) -> (K,)
+                weights = scale_advantage_weights(samples.advantages[samples.mask].reshape(-1, self.policy.n_scales))
 
-                def masked_mean(x: th.Tensor, mask: th.Tensor = mask, n_valid: th.Tensor = n_valid) -> th.Tensor:
-                    return (x * mask).sum() / n_valid
-
-                # the actor: clipped surrogate objective and entropy bonus (the critics come one by one below)
-                log_prob, entropy = self.policy.evaluate_actor(
-                    samples.observations, samples.actions, samples.actor_states, samples.episode_starts
+                policy_loss, entropy_loss, clip_fraction, approx_kl_div = self._actor_losses(
+                    groups, weights, n_valid, clip_range
                 )
-                # W_K-mixed advantages: (L, B, N, K) -> (L, B, N); the weights from the valid rows (n_valid_rows * N, K)
-                advantages = samples.advantages
-                weights = scale_advantage_weights(advantages[samples.mask].reshape(-1, self.policy.n_scales))  # (K,)
-                mixed_advantages = (advantages * weights).sum(dim=-1)
-
-                ratio = th.exp(log_prob - samples.old_log_prob)
-                policy_loss_1 = mixed_advantages * ratio
-                policy_loss_2 = mixed_advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
-                policy_loss = -masked_mean(th.min(policy_loss_1, policy_loss_2))
                 pg_losses.append(policy_loss.item())
-                clip_fractions.append(masked_mean((th.abs(ratio - 1) > clip_range).float()).item())
-                entropy_loss = -masked_mean(entropy)
+                clip_fractions.append(clip_fraction)
                 entropy_losses.append(entropy_loss.item())
-
-                # approximate KL (Schulman's estimator), for logging and early stopping
-                with th.no_grad():
-                    log_ratio = log_prob - samples.old_log_prob
-                    approx_kl_div = masked_mean((th.exp(log_ratio) - 1) - log_ratio).item()
-                    approx_kl_divs.append(approx_kl_div)
+                approx_kl_divs.append(approx_kl_div)
                 if self.target_kl is not None and approx_kl_div > 1.5 * self.target_kl:
                     continue_training = False
                     if self.verbose >= 1:
@@ -755,23 +748,8 @@ class MAPPO(OnPolicyAlgorithm):
                 actor_loss = policy_loss + self.ent_coef * entropy_loss
                 actor_loss.backward()
                 loss_value = actor_loss.item()
-
-                # clipped value loss per scale, on returns normalised by the scale's ValueNorm (updated here)
                 for k, scale in enumerate(scales):
-                    values = in_joint_layout(
-                        self.policy.evaluate_critic(k, samples.observations, samples.critic_states[k], samples.episode_starts),
-                        k,
-                        len(scales),
-                    )  # (L, B, N)
-                    returns = samples.returns[..., k]
-                    if self.normalize_values:
-                        value_norm = self.policy.value_norm(scale)
-                        value_norm.update(returns[samples.mask])
-                        returns = value_norm.normalize(returns)
-                    per_sample = clipped_value_loss(
-                        values, samples.old_values[..., k], returns, clip_range_vf, self.value_loss, self.huber_delta
-                    )
-                    scale_loss = masked_mean(per_sample)
+                    scale_loss = self._critic_loss(k, samples, groups, n_valid, clip_range_vf)
                     (self.vf_coef * scale_loss).backward()
                     value_losses[scale].append(scale_loss.item())
                     advantage_weights[scale].append(weights[k].item())
@@ -803,6 +781,80 @@ class MAPPO(OnPolicyAlgorithm):
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/clip_range", clip_range)
         self.logger.record("train/clip_range_vf", clip_range_vf)
+
+    def _actor_losses(
+        self, groups: list[ChunkGroup], weights: th.Tensor, n_valid: th.Tensor, clip_range: float
+    ) -> tuple[th.Tensor, th.Tensor, float, float]:
+        """The clipped surrogate loss and the entropy loss of a minibatch (means over its valid rows), the share of
+        clipped ratios and the approximate KL (Schulman's estimator), the actor run on each group of blocks.
+
+        :param groups: the minibatch's blocks by valid length (:func:`~sb3_saeir.common.buffers.split_by_valid_length`)
+        :param weights: the scales' advantage weights ``(K,)``
+        :param n_valid: valid rows of the minibatch (steps x blocks x agents)
+        :param clip_range: the ratio's clip range
+        :return: policy loss, entropy loss (tensors with their graphs), clip fraction, approximate KL
+        """
+        policy_sums, entropy_sums = [], []
+        clipped, kl_sum = 0.0, 0.0
+        for group in groups:
+            part = group.samples
+            log_prob, entropy = self.policy.evaluate_actor(
+                part.observations, part.actions, part.actor_states, part.episode_starts
+            )  # (length, B_g, N) each
+            mixed_advantages = (part.advantages * weights).sum(dim=-1)  # (length, B_g, N, K) -> (length, B_g, N)
+            ratio = th.exp(log_prob - part.old_log_prob)
+            policy_loss_1 = mixed_advantages * ratio
+            policy_loss_2 = mixed_advantages * th.clamp(ratio, 1 - clip_range, 1 + clip_range)
+            policy_sums.append(th.min(policy_loss_1, policy_loss_2).sum())
+            entropy_sums.append(entropy.sum())
+            with th.no_grad():
+                clipped += (th.abs(ratio - 1) > clip_range).float().sum().item()
+                log_ratio = log_prob - part.old_log_prob
+                kl_sum += ((th.exp(log_ratio) - 1) - log_ratio).sum().item()
+        valid = float(n_valid)
+        return -in_order(policy_sums) / n_valid, -in_order(entropy_sums) / n_valid, clipped / valid, kl_sum / valid
+
+    def _critic_loss(
+        self,
+        k: int,
+        samples: GroupedRecurrentSamples,
+        groups: list[ChunkGroup],
+        n_valid: th.Tensor,
+        clip_range_vf: float | None,
+    ) -> th.Tensor:
+        """Critic scale ``k``'s clipped value loss on a minibatch (mean over its valid rows), on returns normalised by
+        the scale's ValueNorm (updated here with the minibatch's valid returns), the critic run on each group of blocks
+        with its rows of the Gumbel draws of the whole minibatch (the noise is that of the padded minibatch).
+
+        :param k: the scale's index
+        :param samples: the minibatch (padded)
+        :param groups: its blocks by valid length
+        :param n_valid: valid rows of the minibatch (steps x blocks x agents)
+        :param clip_range_vf: the value clip range (``None``: no clipping)
+        :return: the loss, with its graph
+        """
+        n_steps, n_blocks = samples.mask.shape
+        uniform = self.policy.draw_gumbel_uniform(k, n_steps, n_blocks)  # (L, B, E, T_K) or None
+        if self.normalize_values:
+            value_norm = self.policy.value_norm(self.policy.scales[k])
+            value_norm.update(samples.returns[..., k][samples.mask])
+        loss_sums = []
+        for group in groups:
+            part = group.samples
+            # the group's rows of the draws: (length, B_g, E, T_K) -> (length * B_g, E, T_K), rows (step, block)
+            part_uniform = None if uniform is None else uniform[: group.length, group.blocks].flatten(0, 1)
+            values = self.policy.evaluate_critic(
+                k, part.observations, part.critic_states[k], part.episode_starts, part_uniform
+            )  # (length, B_g, N)
+            values = in_joint_layout(values, k, self.policy.n_scales)
+            returns = part.returns[..., k]
+            if self.normalize_values:
+                returns = value_norm.normalize(returns)
+            per_sample = clipped_value_loss(
+                values, part.old_values[..., k], returns, clip_range_vf, self.value_loss, self.huber_delta
+            )
+            loss_sums.append(per_sample.sum())
+        return in_order(loss_sums) / n_valid
 
     # ------------------------------------------------------------------------------------------------ SB3 API
     def dump_logs(self, iteration: int = 0) -> None:

@@ -82,7 +82,7 @@ class EveryAgentSteps(BaseCallback):
 
 class BudgetEstimate(BaseCallback):
     """After the first rollout and update, print how long the whole budget will take at that rate (the ETA line of
-    ``python -m sb3_saeir.train`` and ``python -m sb3_saeir.zoo train``).
+    ``python -m sb3_saeir.train`` and ``python -m sb3_saeir.zoo train``); for a resumed run, how long the rest takes.
 
     :param total_timesteps: the run's budget in agent-steps
     """
@@ -91,23 +91,28 @@ class BudgetEstimate(BaseCallback):
         super().__init__()
         self.total_timesteps = total_timesteps
         self.start = 0.0
+        self.start_steps = 0
         self.printed = False
 
     def _on_training_start(self) -> None:
         self.start = time.time()
+        self.start_steps = self.model.num_timesteps
 
     def _on_step(self) -> bool:
         return True
 
     def _on_rollout_start(self) -> None:
-        done = self.model.num_timesteps - self.model._num_timesteps_at_start
+        done = self.model.num_timesteps - self.start_steps  # agent-steps of this process
         if self.printed or done <= 0:
             return
         self.printed = True
         rate = done / max(time.time() - self.start, 1e-9)
-        hours = (self.total_timesteps - done) / rate / 3600
+        remaining = max(int(getattr(self.model, "_total_timesteps", self.total_timesteps)) - self.model.num_timesteps, 0)
+        resumed = self.start_steps > 0
+        what = f"the remaining {remaining + done:,}" if resumed else f"the {self.total_timesteps:,}"
+        hours = (remaining + done) / rate / 3600
         print(
-            f"First rollout and update: {rate:,.0f} agent-steps/s; the {self.total_timesteps:,} agent-steps take about "
+            f"First rollout and update: {rate:,.0f} agent-steps/s; {what} agent-steps take about "
             f"{hours:.1f} h at this rate (Ctrl-C saves the model and stops).",
             flush=True,
         )

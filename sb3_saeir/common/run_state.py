@@ -129,6 +129,17 @@ def resumable_env(env: Any) -> Any | None:
     return env
 
 
+def unresumable_part(env: Any) -> str:
+    """The class name of what keeps ``env`` from saving its state: the first env, going inwards through wrappers that
+    save their own state, without ``get_resume_state`` (``env``'s own class name when it can save its state)."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    part = env
+    while isinstance(part, VecEnvWrapper) and callable(getattr(type(part), "get_resume_state", None)):
+        part = part.venv
+    return type(part if resumable_env(env) is None else env).__name__
+
+
 def callback_state(callback: Any) -> dict[str, Any]:
     """The state of a callback: its attributes but the links to the model and per-rollout data."""
     skipped = (*CALLBACK_LINKS, *CALLBACK_TRANSIENT)
@@ -153,7 +164,7 @@ def capture_resume_state(model: Any, extras: dict[str, Resumable] | None = None)
         "rng": rng_states(),
         "model": {name: getattr(model, name) for name in MODEL_RESUME_ATTRIBUTES if hasattr(model, name)},
         "env": env.get_resume_state() if env is not None else None,
-        "env_type": type(model.get_env()).__name__,
+        "env_type": unresumable_part(model.get_env()),
         "callbacks": [callback_state(callback) for callback in getattr(model, "_intrinsic_rewards", [])],
         "logger": {
             "name_to_value": dict(logger.name_to_value),

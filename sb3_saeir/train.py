@@ -429,14 +429,18 @@ def train(args: argparse.Namespace) -> Path:
 def build_experiment(experiment: Experiment, args: argparse.Namespace, resume: ResumePoint | None = None) -> None:
     """Build the env and the model (or load ``--trained-agent``, or, with ``--resume``, check the run's settings and
     load its checkpoint); a bad setting becomes a :class:`~sb3_saeir.config.ConfigError`."""
+    # -tb, else the config's tensorboard_log (passing None would switch the config's off)
+    tensorboard_log = args.tensorboard_log
+    if tensorboard_log is None:
+        tensorboard_log = experiment.hyperparams.get("tensorboard_log")
     try:
         if args.trained_agent and resume is None:
-            experiment.load(args.trained_agent, device=args.device, tensorboard_log=args.tensorboard_log)
+            experiment.load(args.trained_agent, device=args.device, tensorboard_log=tensorboard_log)
         else:
-            experiment.build(verbose=args.verbose, device=args.device, tensorboard_log=args.tensorboard_log)
+            experiment.build(verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
         if resume is not None:
             check_resume_settings(resume, args, experiment)
-            experiment.resume(resume.checkpoint, device=args.device, tensorboard_log=args.tensorboard_log)
+            experiment.resume(resume.checkpoint, device=args.device, tensorboard_log=tensorboard_log)
     except (ValueError, TypeError, KeyError, zipfile.BadZipFile, ConfigError) as error:
         experiment.close()
         if isinstance(error, ConfigError):

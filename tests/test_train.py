@@ -104,3 +104,13 @@ def test_missing_config_entry(tmp_path, capsys):
     assert train_main(["--algo", "mappo", "-conf", str(conf), "-f", str(tmp_path / "logs")]) == 2
     assert "has no entry for task 'cn-sparse-n3'. Entries: cn-sparse-n4" in capsys.readouterr().err
     assert not (tmp_path / "logs").exists()
+
+
+def test_the_configs_tensorboard_log_is_used_without_tb(tmp_path):
+    """A ``tensorboard_log`` in the config (here through -params) writes events when -tb is not given."""
+    tensorboard = tmp_path / "tb"
+    argv = ["--algo", "mappo", *TINY_ARGV, "-f", str(tmp_path / "logs"), "-n", "60", "--eval-freq", "0"]
+    argv += ["-params", "n_steps:10", "n_epochs:1", f"tensorboard_log:'{tensorboard}'"]
+    assert train_main(argv) == 0
+    assert list(tensorboard.glob("MAPPO_1/events.out.tfevents.*"))
+    assert (tmp_path / "logs" / "mappo" / "cn-sparse-n3_1" / "progress.csv").is_file()

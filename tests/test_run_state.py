@@ -12,22 +12,15 @@ from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 
 
 @pytest.fixture
-def native():
-    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
-    yield env
-    env.close()
-
-
-@pytest.fixture
 def supersuit():
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, backend="supersuit")
     yield env
     env.close()
 
 
-def test_which_envs_resume_exactly(native, supersuit):
-    assert resumable_env(native) is native and unresumable_part(native) == "NavigationVecEnv"
-    monitor = MultiAgentVecMonitor(native)
+def test_which_envs_resume_exactly(env, supersuit):
+    assert resumable_env(env) is env and unresumable_part(env) == "NavigationVecEnv"
+    monitor = MultiAgentVecMonitor(env)
     assert resumable_env(monitor) is monitor and unresumable_part(monitor) == "MultiAgentVecMonitor"
     assert resumable_env(supersuit) is None and unresumable_part(supersuit) == "MultiAgentVecEnv"
     assert resumable_env(MultiAgentVecMonitor(supersuit)) is None
@@ -45,9 +38,9 @@ def rows(path):
         return list(csv.DictReader(file))
 
 
-def test_monitor_restore_cuts_its_csv_back_and_goes_on_as_before(native, tmp_path):
+def test_monitor_restore_cuts_its_csv_back_and_goes_on_as_before(env, tmp_path):
     rng = np.random.default_rng(0)
-    monitor = MultiAgentVecMonitor(native, str(tmp_path / "games"))
+    monitor = MultiAgentVecMonitor(env, str(tmp_path / "games"))
     monitor.reset()
     play(monitor, 30, rng)  # 25-step episodes: 2 rows
     state, rng_state = monitor.get_resume_state(), rng.bit_generator.state
@@ -63,20 +56,20 @@ def test_monitor_restore_cuts_its_csv_back_and_goes_on_as_before(native, tmp_pat
     assert without_time == [{key: value for key, value in row.items() if key != "t"} for row in uninterrupted]
 
 
-def test_monitor_append_keeps_an_existing_csv(native, tmp_path):
+def test_monitor_append_keeps_an_existing_csv(env, tmp_path):
     rng = np.random.default_rng(0)
-    first = MultiAgentVecMonitor(native, str(tmp_path / "games"))
+    first = MultiAgentVecMonitor(env, str(tmp_path / "games"))
     first.reset()
     play(first, 25, rng)
     first.close()
-    native2 = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=1)
-    second = MultiAgentVecMonitor(native2, str(tmp_path / "games"), append=True)
+    second_env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=1)
+    second = MultiAgentVecMonitor(second_env, str(tmp_path / "games"), append=True)
     second.reset()
     play(second, 25, rng)
     second.close()
     assert len(rows(tmp_path / "games.monitor.csv")) == 4
     with pytest.raises(TypeError, match="append must be True or False"):
-        MultiAgentVecMonitor(native2, append="yes")
+        MultiAgentVecMonitor(second_env, append="yes")
 
 
 @pytest.mark.parametrize("save_freq", [-1, 1.5, True])

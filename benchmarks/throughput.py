@@ -15,6 +15,9 @@ hidden size 64) except the number of games, in a fresh process of its own (so th
   that computed the bonus there);
 - **other**: the rest (buffer writes, GAE, logging).
 
+``busy%`` is the share of the machine's CPUs kept busy over the timed iterations (CPU-seconds of this process and its
+env workers over ``CPUs x wall``; needs psutil). ``--num-cpus`` spreads the games over env worker processes.
+
 The floating-point work of one update is counted once with ``torch.utils.flop_counter.FlopCounterMode`` (matrix
 products, which dominate these networks; elementwise operations are not counted), then divided by the mean timed
 update to give the update's GFLOP/s, which is compared with a 64-wide matrix product ``(rows, 64) @ (64, 64)``
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
+import os
 import resource
 import time
 from collections.abc import Callable
@@ -135,6 +139,7 @@ def measure_method(
     device: str,
     threads: int,
     backend: str | None = None,
+    num_cpus: int | None = None,
 ) -> dict:
     """Train ``algo`` in this process and return its figures (run in a fresh process per method).
 
@@ -149,12 +154,16 @@ def measure_method(
     timer = PhaseTimer(torch_device)
     _patch_bonus(timer)
     env = None
-    if backend is not None:  # this version's env backends (native NumPy engine or SuperSuit), for a like-for-like split
+    if backend is not None or num_cpus is not None:  # the env backend (native or SuperSuit) or worker processes asked for
         from sb3_saeir import make_multiagent_vec_env
         from sb3_saeir.config import load_hyperparams
 
-        env_kwargs = load_hyperparams(algo, task).get("env_kwargs") or {}
-        env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, backend=backend, **env_kwargs)
+        env_kwargs = dict(load_hyperparams(algo, task).get("env_kwargs") or {})
+        if backend is not None:
+            env_kwargs["backend"] = backend
+        if num_cpus is not None:
+            env_kwargs["num_cpus"] = num_cpus
+        env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, **env_kwargs)
     model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed, env=env, device=device)
     policy = model.policy
     policy.forward = timer.wrap("inference", policy.forward)  # type: ignore[method-assign]
@@ -165,9 +174,10 @@ def measure_method(
     model.learn(warmup * rollout, callback=callbacks)
     timer.reset()
     start_steps = model.num_timesteps
-    start = time.perf_counter()
+    cpu_start, start = process_tree_cpu_seconds(), time.perf_counter()
     model.learn(iterations * rollout, callback=callbacks, reset_num_timesteps=False)
     wall = time.perf_counter() - start
+    cpu = process_tree_cpu_seconds() - cpu_start
     steps = model.num_timesteps - start_steps
     phases, n_updates = dict(timer.totals), timer.counts["update"]
     peak_rss_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before the FLOP count's extra update
@@ -187,7 +197,33 @@ def measure_method(
         "update_gflops": update_gflop / update_seconds if update_seconds > 0 else float("nan"),
         "matmul_gflops": matmul_gflops(torch_device),
         "peak_rss_mib": peak_rss_mib,
+        "busy": cpu / (wall * (os.cpu_count() or 1)),
     }
+
+
+def _measure_into(queue: Any, arguments: tuple) -> None:
+    queue.put(measure_method(*arguments))
+
+
+def in_fresh_process(context: Any, arguments: tuple) -> dict:
+    """:func:`measure_method` in a fresh (non-daemonic) process, so that its peak RSS is its own and it may start env
+    worker processes of its own."""
+    queue = context.Queue()
+    process = context.Process(target=_measure_into, args=(queue, arguments))
+    process.start()
+    result = queue.get()
+    process.join()
+    return result
+
+
+def process_tree_cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process and its children (env workers); NaN without psutil."""
+    try:
+        import psutil
+    except ImportError:
+        return float("nan")
+    process = psutil.Process()
+    return sum(sum(proc.cpu_times()[:2]) for proc in [process, *process.children(recursive=True)])
 
 
 def _random_stepping(task: str, n_games: int, iterations: int, seed: int, backend: str | None) -> dict:
@@ -225,35 +261,44 @@ def main() -> None:
         help="env backend of make_multiagent_vec_env (native or supersuit; default: the version's default, native "
         "where the task has one). Versions before the native engine have no such argument: leave it out",
     )
+    parser.add_argument(
+        "--num-cpus",
+        type=int,
+        default=None,
+        help="env worker processes (default: the config's; 0: every game in this process). Training methods only",
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
+    if args.warmup < 1:
+        parser.error("--warmup must be >= 1: the first iteration also fills the buffer that the FLOP count reads")
 
     context = multiprocessing.get_context("spawn")
     print(
         f"task {args.task}, {args.n_games} games, {args.iterations} timed iterations after {args.warmup}, "
-        f"{args.threads} thread(s), device {args.device}, env backend {args.backend or 'default'}, torch {th.__version__}"
+        f"{args.threads} thread(s), device {args.device}, env backend {args.backend or 'default'}, "
+        f"env workers {'config' if args.num_cpus is None else args.num_cpus}, torch {th.__version__}"
     )
     header = (
         f"{'method':>10} {'agent-steps/s':>13} {'env%':>5} {'inf%':>5} {'upd%':>5} {'bonus%':>6} {'other%':>6} "
-        f"{'upd s':>6} {'upd GFLOP':>9} {'GFLOP/s':>7} {'matmul':>6} {'ratio':>5} {'peak RSS MiB':>12}"
+        f"{'upd s':>6} {'upd GFLOP':>9} {'GFLOP/s':>7} {'matmul':>6} {'ratio':>5} {'peak RSS MiB':>12} {'busy%':>5}"
     )
     print(header, flush=True)
     for algo in args.algos:
-        with context.Pool(1) as pool:
-            result = pool.apply(
-                measure_method,
-                (
-                    algo,
-                    args.task,
-                    args.n_games,
-                    args.warmup,
-                    args.iterations,
-                    args.seed,
-                    args.device,
-                    args.threads,
-                    args.backend,
-                ),
-            )
+        result = in_fresh_process(
+            context,
+            (
+                algo,
+                args.task,
+                args.n_games,
+                args.warmup,
+                args.iterations,
+                args.seed,
+                args.device,
+                args.threads,
+                args.backend,
+                args.num_cpus,
+            ),
+        )
         wall, phases = result["wall"], result["phases"]
         shares = {phase: 100.0 * phases.get(phase, 0.0) / wall for phase in PHASES}
         other = 100.0 - sum(shares.values())
@@ -267,7 +312,8 @@ def main() -> None:
             flops = f"{'-':>6} {'-':>9} {'-':>7} {'-':>6} {'-':>5}"
         print(
             f"{algo:>10} {result['agent_steps_per_s']:13.0f} {shares['env']:5.1f} {shares['inference']:5.1f} "
-            f"{shares['update']:5.1f} {shares['bonus']:6.1f} {other:6.1f} {flops} {result['peak_rss_mib']:12.0f}",
+            f"{shares['update']:5.1f} {shares['bonus']:6.1f} {other:6.1f} {flops} {result['peak_rss_mib']:12.0f} "
+            f"{100 * result.get('busy', float('nan')):5.0f}",
             flush=True,
         )
 

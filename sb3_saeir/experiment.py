@@ -88,7 +88,7 @@ class Experiment:
     @property
     def n_timesteps(self) -> int:
         """Training budget in agent-steps (the config's ``n_timesteps``)."""
-        return int(self.hyperparams.get("n_timesteps", 1_000_000))
+        return config_budget(self.hyperparams)
 
     @property
     def main_metric(self) -> str:
@@ -217,6 +217,11 @@ class Experiment:
         self._eval_envs = []
 
 
+def config_budget(hyperparams: dict[str, Any]) -> int:
+    """A config entry's training budget in agent-steps: its ``n_timesteps`` (default 1,000,000)."""
+    return int(hyperparams.get("n_timesteps", 1_000_000))
+
+
 def _whole(name: str, value: Any, low: int) -> int:
     """``value`` as an int ``>= low``; a fractional, boolean or string value is refused (``int()`` would truncate it)."""
     whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
@@ -304,14 +309,19 @@ def model_method_mismatch(path: str | Path, algo: str, task: str, hyperparams: d
 
 
 # ---------------------------------------------------------------------------------------------------- run folders
+def numbered_paths(folder: str | Path, prefix: str, suffix: str = "") -> dict[int, Path]:
+    """The paths ``<folder>/<prefix><number><suffix>`` by their number (other names are left out)."""
+    found = {}
+    for path in Path(folder).glob(f"{prefix}*{suffix}"):
+        number = path.name[len(prefix) : len(path.name) - len(suffix)]
+        if number.isdigit():
+            found[int(number)] = path
+    return found
+
+
 def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]:
     """Run folders ``<log_folder>/<algo>/<task>_<run>`` by run number."""
-    runs = {}
-    for path in (Path(log_folder) / algo).glob(f"{task}_*"):
-        suffix = path.name[len(task) + 1 :]
-        if suffix.isdigit() and path.is_dir():
-            runs[int(suffix)] = path
-    return runs
+    return {number: path for number, path in numbered_paths(Path(log_folder) / algo, f"{task}_").items() if path.is_dir()}
 
 
 def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
@@ -322,12 +332,7 @@ def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
 def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
     """The resumable checkpoints of a training run's folder (``rl_model_<steps>_steps.zip``), by agent-steps."""
     prefix, suffix = CHECKPOINT_NAME.split("{steps}")
-    checkpoints = {}
-    for path in Path(folder).glob(f"{prefix}*{suffix}"):
-        steps = path.name[len(prefix) : -len(suffix)]
-        if steps.isdigit():
-            checkpoints[int(steps)] = path
-    return checkpoints
+    return numbered_paths(folder, prefix, suffix)
 
 
 def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:

@@ -69,6 +69,7 @@ from sb3_saeir.experiment import (
     CHECKPOINT_NAME,
     Experiment,
     checkpoint_steps,
+    config_budget,
     model_method_mismatch,
     next_run_folder,
     run_numbers,
@@ -165,18 +166,28 @@ class ResumePoint:
     :param folder: the run's folder
     :param checkpoint: its last resumable checkpoint
     :param state: the checkpoint's resume state
-    :param seed: the run's seed (as recorded in ``<task>/args.yml``)
+    :param stored_args: the run's command line (its ``<task>/args.yml``)
     """
 
     folder: Path
     checkpoint: Path
     state: dict[str, Any]
-    seed: int
+    stored_args: dict[str, Any]
 
     @property
     def steps(self) -> int:
         """Agent-steps of the checkpoint."""
         return int(self.state["num_timesteps"])
+
+    @property
+    def seed(self) -> int:
+        """The run's seed (the drawn one when it was started with ``--seed -1``)."""
+        return int(self.stored_args["seed"])
+
+    def total_timesteps(self, n_timesteps: int) -> int:
+        """The agent-step count at which the run ends: where its ``learn`` started (0, or the ``-i`` model's count)
+        plus its budget ``n_timesteps``."""
+        return int(self.state["model"].get("_num_timesteps_at_start", 0)) + n_timesteps
 
 
 def run_callbacks(
@@ -295,12 +306,11 @@ def find_resume_point(args: argparse.Namespace, n_timesteps: int) -> ResumePoint
         raise ConfigError(
             f"--resume: {checkpoint} has no resume state (written by an older version): continue it with -i instead."
         )
+    resume = ResumePoint(folder, checkpoint, state, yaml.safe_load(args_path.read_text()) or {})
     final = folder / f"{args.task}.zip"
-    budget = int(state["model"].get("_num_timesteps_at_start", 0)) + n_timesteps
-    if final.is_file() and saved_timesteps(final) >= budget:
+    if final.is_file() and saved_timesteps(final) >= resume.total_timesteps(n_timesteps):
         raise ConfigError(f"--resume: {folder} is finished ({final.name} at {saved_timesteps(final):,} agent-steps).")
-    seed = int(yaml.safe_load(args_path.read_text())["seed"])
-    return ResumePoint(folder, checkpoint, state, seed)
+    return resume
 
 
 def check_resume_settings(resume: ResumePoint, args: argparse.Namespace, experiment: Experiment) -> None:
@@ -308,10 +318,8 @@ def check_resume_settings(resume: ResumePoint, args: argparse.Namespace, experim
 
     :raises ~sb3_saeir.config.ConfigError: naming what differs and the fix
     """
-    params_path = resume.folder / args.task
-    stored_args = yaml.safe_load((params_path / "args.yml").read_text()) or {}
-    stored_config = yaml.safe_load((params_path / "config.yml").read_text()) or {}
-    differences = resume_differences(stored_args, stored_config, args, experiment.resolved_hyperparams)
+    stored_config = yaml.safe_load((resume.folder / args.task / "config.yml").read_text()) or {}
+    differences = resume_differences(resume.stored_args, stored_config, args, experiment.resolved_hyperparams)
     if differences:
         raise ConfigError(
             f"--resume: {resume.folder} was made with other settings: {'; '.join(differences)}. Fix: resume with the "
@@ -372,7 +380,7 @@ def train(args: argparse.Namespace) -> Path:
         if mismatch:
             raise ConfigError(f"--trained-agent {mismatch}")
     set_num_threads(args.num_threads)
-    n_timesteps = int(hyperparams.get("n_timesteps", 1_000_000))
+    n_timesteps = config_budget(hyperparams)
     resume = find_resume_point(args, n_timesteps) if args.resume is not None else None
     if resume is not None:
         seed, save_path = resume.seed, resume.folder
@@ -400,7 +408,7 @@ def train(args: argparse.Namespace) -> Path:
     n_agents = experiment.env.num_envs // experiment.n_games
     print(f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} agent-steps")
     if resume is not None:
-        remaining = int(resume.state["model"].get("_num_timesteps_at_start", 0)) + n_timesteps - resume.steps
+        remaining = resume.total_timesteps(n_timesteps) - resume.steps
         print(f"Resuming {save_path} from {resume.checkpoint.name}: {remaining:,} agent-steps to go")
         for message in describe_resume(experiment.model, resume.state):
             print(f"Note: {message}")

@@ -644,7 +644,6 @@ class MultiAgentVecMonitor(VecEnvWrapper):
         self.results_writer: Any = None
         self.episodes: collections.deque[dict[str, Any]] = collections.deque(maxlen=10_000)
         self.n_finished_games = 0
-        self.rows_written = 0
 
     def reset(self) -> VecEnvObs:
         return self.venv.reset()
@@ -674,7 +673,6 @@ class MultiAgentVecMonitor(VecEnvWrapper):
                 self.filename, header=header, extra_keys=tuple(episode), override_existing=not keep
             )
         self.results_writer.write_row(row)
-        self.rows_written += 1
 
     @property
     def csv_path(self) -> str:
@@ -691,7 +689,6 @@ class MultiAgentVecMonitor(VecEnvWrapper):
             "venv": self.venv.get_resume_state(),  # type: ignore[attr-defined]
             "episodes": list(self.episodes),
             "n_finished_games": self.n_finished_games,
-            "rows_written": self.rows_written,
             "t_start": self.t_start,
         }
 
@@ -701,7 +698,6 @@ class MultiAgentVecMonitor(VecEnvWrapper):
         self.venv.set_resume_state(state["venv"])  # type: ignore[attr-defined]
         self.episodes = collections.deque(state["episodes"], maxlen=self.episodes.maxlen)
         self.n_finished_games = state["n_finished_games"]
-        self.rows_written = state["rows_written"]
         self.t_start = state["t_start"]
         if self.results_writer is not None:
             self.results_writer.close()
@@ -709,7 +705,8 @@ class MultiAgentVecMonitor(VecEnvWrapper):
         if self.filename is not None and os.path.isfile(self.csv_path):
             with open(self.csv_path) as file:
                 lines = file.read().split("\n")[:-1]  # after the last newline: a row cut by a kill
-            kept = lines[: 2 + self.rows_written] if self.rows_written else []  # the header's two lines, then rows
+            # the header's two lines, then one row per game finished by then (each finished game wrote its row)
+            kept = lines[: 2 + self.n_finished_games] if self.n_finished_games else []
             with open(self.csv_path, "w") as file:
                 file.write("".join(line + "\n" for line in kept))
             self.append = bool(kept)

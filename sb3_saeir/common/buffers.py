@@ -27,14 +27,17 @@ def n_blocks(n_steps: int, n_games: int, data_chunk_length: int) -> int:
 class ChunkGroup(NamedTuple):
     """The blocks of a minibatch with the same number of valid rows, cut to those rows (:func:`split_by_valid_length`).
 
-    :param length: valid rows of each block (the group's L)
     :param blocks: the blocks' positions in the minibatch, ``(B_g,)``
     :param samples: their data, without padded rows: ``observations (length, B_g, N, d)`` and so on
     """
 
-    length: int
     blocks: th.Tensor
     samples: GroupedRecurrentSamples
+
+    @property
+    def length(self) -> int:
+        """Valid rows of each block of the group (its chunk length)."""
+        return int(self.samples.mask.shape[0])
 
 
 def split_by_valid_length(samples: GroupedRecurrentSamples) -> list[ChunkGroup]:
@@ -51,7 +54,7 @@ def split_by_valid_length(samples: GroupedRecurrentSamples) -> list[ChunkGroup]:
     n_steps, n_blocks = samples.mask.shape
     lengths = samples.mask.sum(dim=0)  # (B,) valid rows per block
     if bool((lengths == n_steps).all()):
-        return [ChunkGroup(n_steps, th.arange(n_blocks, device=lengths.device), samples)]
+        return [ChunkGroup(th.arange(n_blocks, device=lengths.device), samples)]
     groups = []
     for length in sorted({int(value) for value in lengths.tolist()}, reverse=True):
         blocks = (lengths == length).nonzero().squeeze(-1)  # (B_g,)
@@ -69,7 +72,7 @@ def split_by_valid_length(samples: GroupedRecurrentSamples) -> list[ChunkGroup]:
             game_indices=samples.game_indices[blocks],
             time_indices=samples.time_indices[:length, blocks],
         )
-        groups.append(ChunkGroup(length, blocks, part))
+        groups.append(ChunkGroup(blocks, part))
     return groups
 
 

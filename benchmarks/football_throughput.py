@@ -92,16 +92,35 @@ def cost_model_lines(engine_s: float, training_s: float, n_games: int) -> list[s
     return lines
 
 
-def random_stepping(task: str, n_games: int, seconds: float, num_cpus: int, seed: int) -> dict[str, float]:
-    """Env steps/s (and per CPU-second) of uniformly random actions for about ``seconds`` seconds."""
+def random_stepping(
+    task: str, n_games: int, seconds: float, num_cpus: int, seed: int, groups: bool = False
+) -> dict[str, float]:
+    """Env steps/s (and per CPU-second) of uniformly random actions for about ``seconds`` seconds.
+
+    With ``groups``, each worker's games step on their own (as double-buffered sampling steps them: new actions go to
+    whichever worker answers first) instead of all games in lockstep.
+    """
     env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, num_cpus=num_cpus)
     rng = np.random.default_rng(seed)
     env.reset()
     vec_steps = 0
+    n_actions = env.action_space.n
     cpu_start, start = cpu_seconds(), time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        env.step(rng.integers(0, env.action_space.n, size=env.num_envs))
-        vec_steps += 1
+    if groups:
+        slot_groups = env.sampling_groups
+        for group, slots in enumerate(slot_groups):
+            env.step_group_async(group, rng.integers(0, n_actions, size=len(slots)))
+        while time.perf_counter() - start < seconds:
+            group, _, _ = env.step_any_group_wait()
+            env.step_group_async(group, rng.integers(0, n_actions, size=len(slot_groups[group])))
+            while env.n_staged_steps:
+                env.step_wait()
+                vec_steps += 1
+        env.drain_groups()
+    else:
+        while time.perf_counter() - start < seconds:
+            env.step(rng.integers(0, n_actions, size=env.num_envs))
+            vec_steps += 1
     elapsed, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
     episodes = env.episode_count
     env.close()
@@ -114,9 +133,17 @@ def random_stepping(task: str, n_games: int, seconds: float, num_cpus: int, seed
     }
 
 
-def training(algo: str, task: str, n_games: int, iterations: int, seed: int, num_cpus: int = 0) -> dict[str, float]:
-    """Env steps/s of ``learn`` (rollouts + updates) with the packaged config, ``iterations`` iterations."""
+def training(
+    algo: str, task: str, n_games: int, iterations: int, seed: int, num_cpus: int = 0, double_buffered: str | None = None
+) -> dict[str, float]:
+    """Env steps/s of ``learn`` (rollouts + updates) with the packaged config, ``iterations`` iterations.
+
+    :param double_buffered: ``"on"``, ``"off"`` or ``"auto"``: the algorithm's ``double_buffered``; ``None``: the
+        config's (and versions of the package without the option)
+    """
     config = {**load_hyperparams(algo, task), "num_cpus": num_cpus}
+    if double_buffered is not None:
+        config["double_buffered"] = {"on": True, "off": False, "auto": "auto"}[double_buffered]
     model, env, callbacks, _ = build_model(algo, task, config, n_games=n_games, seed=seed)
     n_agents = env.num_envs // n_games
     agent_steps = iterations * model.n_steps * env.num_envs
@@ -137,44 +164,68 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--tasks", nargs="+", default=["grf-3v1-keeper", "grf-counterattack-easy"])
     parser.add_argument("--n-games", nargs="+", type=int, default=[1, 2], help="game counts for random stepping")
-    parser.add_argument("--num-cpus", nargs="+", type=int, default=[0], help="SuperSuit worker processes (0: in-process)")
+    parser.add_argument("--num-cpus", nargs="+", type=int, default=[0], help="env worker processes (0: in-process)")
+    parser.add_argument(
+        "--random-groups",
+        action="store_true",
+        help="random stepping with workers: each worker's games step on their own (double-buffered) instead of in lockstep",
+    )
     parser.add_argument("--seconds", type=float, default=20.0, help="duration of each random-stepping measurement")
     parser.add_argument("--no-random", action="store_true", help="skip random stepping")
-    parser.add_argument("--train-algos", nargs="+", default=["saeir_ppo"], help="methods trained (none: skip)")
+    parser.add_argument("--train-algos", nargs="*", default=["saeir_ppo"], help="methods trained (none given: skip)")
     parser.add_argument("--train-task", default="grf-3v1-keeper")
     parser.add_argument("--train-games", nargs="+", type=int, default=[2], help="game counts of the training runs")
     parser.add_argument("--train-num-cpus", nargs="+", type=int, default=[0], help="env worker processes of training")
+    parser.add_argument(
+        "--train-double-buffered",
+        nargs="+",
+        choices=["on", "off", "auto"],
+        default=[None],
+        help="the algorithms' double_buffered (default: the config's; leave out for versions without the option)",
+    )
     parser.add_argument("--train-iterations", type=int, default=2, help="PPO iterations (each n_steps x games env steps)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (the update; inference is tiny)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    th.set_num_threads(1)
+    th.set_num_threads(args.threads)
 
     engine_s: float | None = None  # CPU-seconds per env step of one game in this process (the cost model's e)
     if not args.no_random:
         for task in args.tasks:
             for num_cpus in args.num_cpus:
                 for n_games in args.n_games:
-                    result = random_stepping(task, n_games, args.seconds, num_cpus, args.seed)
+                    groups = args.random_groups and num_cpus >= 2
+                    result = random_stepping(task, n_games, args.seconds, num_cpus, args.seed, groups)
                     if task == args.train_task and num_cpus == 0 and n_games == 1:
                         engine_s = 1.0 / result["env_steps_per_cpu_s"]
+                    mode = " groups" if groups else ""
                     print(
-                        f"random {task:>22} games={n_games} num_cpus={num_cpus}: {result['env_steps_per_s']:7.1f} env steps/s "
+                        f"random {task:>22} games={n_games} num_cpus={num_cpus}{mode}: {result['env_steps_per_s']:7.1f} env steps/s "
                         f"({result['env_steps_per_cpu_s']:6.1f} per CPU-s, {result['episodes']:.0f} episodes, "
                         f"{result['busy']:.0%} of the CPUs busy)",
                         flush=True,
                     )
-    for algo in args.train_algos:
-        for num_cpus in args.train_num_cpus:
-            for n_games in args.train_games:
-                result = training(algo, args.train_task, n_games, args.train_iterations, args.seed, num_cpus)
-                print(
-                    f"train  {algo} {args.train_task} games={n_games} num_cpus={num_cpus} iterations={args.train_iterations}: "
-                    f"{result['env_steps_per_s']:7.1f} env steps/s ({result['env_steps_per_cpu_s']:6.1f} per CPU-s, "
-                    f"{result['seconds']:.0f} s, {result['busy']:.0%} of the CPUs busy)",
-                    flush=True,
-                )
-                if engine_s is not None:
-                    print("\n".join(cost_model_lines(engine_s, 1.0 / result["env_steps_per_cpu_s"], n_games)), flush=True)
+    runs = [
+        (algo, num_cpus, n_games, double_buffered)
+        for algo in args.train_algos
+        for num_cpus in args.train_num_cpus
+        for n_games in args.train_games
+        for double_buffered in args.train_double_buffered
+    ]
+    for algo, num_cpus, n_games, double_buffered in runs:
+        result = training(
+            algo, args.train_task, n_games, args.train_iterations, args.seed, num_cpus, double_buffered
+        )
+        mode = f" double_buffered={double_buffered}" if double_buffered is not None else ""
+        print(
+            f"train  {algo} {args.train_task} games={n_games} num_cpus={num_cpus}{mode} threads={args.threads} "
+            f"iterations={args.train_iterations}: "
+            f"{result['env_steps_per_s']:7.1f} env steps/s ({result['env_steps_per_cpu_s']:6.1f} per CPU-s, "
+            f"{result['seconds']:.0f} s, {result['busy']:.0%} of the CPUs busy)",
+            flush=True,
+        )
+        if engine_s is not None:
+            print("\n".join(cost_model_lines(engine_s, 1.0 / result["env_steps_per_cpu_s"], n_games)), flush=True)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS {peak_mb:.0f} MB; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
 

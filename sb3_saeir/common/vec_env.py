@@ -4,7 +4,11 @@ SuperSuit turns a PettingZoo :class:`~pettingzoo.utils.env.ParallelEnv` into a v
 (``pettingzoo_env_to_vec_env_v1``) and concatenates ``n_games`` copies (``concat_vec_envs_v1``). Its own SB3 wrapper
 is broken with SB3 2.9 (no ``seed``, ``get_attr``, ``env_method``, ``metadata``; wrong ``reset_infos`` with
 subprocesses; overlapping per-game seeds with ``num_cpus > 1``), so :class:`MultiAgentVecEnv` is a proper SB3
-:class:`~stable_baselines3.common.vec_env.VecEnv` over SuperSuit's gymnasium-style vector env.
+:class:`~stable_baselines3.common.vec_env.VecEnv` over SuperSuit's gymnasium-style vector env (games in this
+process) or over :class:`~sb3_saeir.common.game_workers.GameWorkerVecEnv` (games in worker processes, with shared-memory
+buffers and one message per worker and step; SuperSuit's own worker path kept the second core idle a quarter of the
+time, ``docs/guide/performance.md``). The games step alike on both paths (same seeds, same streams; tested).
+Double-buffered sampling steps each worker's games on their own (:attr:`MultiAgentVecEnv.sampling_groups`).
 
 Slot layout: ``slot = game * n_agents + agent`` with agents in ``possible_agents`` order. All agents of a game
 reset together. Episode statistics are recorded once per game (not once per agent, as ``VecMonitor`` would).
@@ -26,6 +30,7 @@ from pettingzoo.utils.env import AECEnv, ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
+from sb3_saeir.common.game_workers import GameWorkerVecEnv
 from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
 from sb3_saeir.common.utils import check_bool
 
@@ -130,6 +135,22 @@ class _NoAgentDeath(BaseParallelWrapper):
                 )
 
 
+class _WrappedGameFactory:
+    """Picklable factory of one game as the vec env steps it: ``_NoAgentDeath(env_fn())`` with a ``render_mode``.
+
+    :param env_fn: callable returning one PettingZoo ``ParallelEnv``
+    """
+
+    def __init__(self, env_fn: ParallelEnvFactory) -> None:
+        self.env_fn = env_fn
+
+    def __call__(self) -> ParallelEnv:
+        game = self.env_fn()
+        if not hasattr(game.unwrapped, "render_mode"):  # optional in PettingZoo, expected by the wrappers
+            game.unwrapped.render_mode = None
+        return _NoAgentDeath(game)
+
+
 # Rewards of this magnitude or more get a warning: the value loss squares value errors of this size in float32, whose
 # largest value is 3.4e38, so a reward of 1e19 already gives inf losses; 1e18 leaves one order of margin.
 HUGE_REWARD = 1e18
@@ -215,6 +236,7 @@ def check_finite(
     n_agents: int,
     agent_names: Sequence[str],
     episode_steps: np.ndarray,
+    first_game: int = 0,
 ) -> None:
     """Raise :class:`NonFiniteValueError` naming the first slot whose observation or reward is NaN or infinite.
 
@@ -224,6 +246,7 @@ def check_finite(
     :param n_agents: agents per game (slot = game * n_agents + agent)
     :param agent_names: the agents' names, in slot order within a game
     :param episode_steps: ``(n_games,)`` the step of each game's episode that produced these values
+    :param first_game: index of the first game of these arrays in its vec env (for the message)
     """
     flat = np.asarray(observations).reshape(len(observations), -1)  # (G * N, ...) -> (G * N, d)
     if np.issubdtype(flat.dtype, np.integer) and rewards is None:
@@ -241,7 +264,7 @@ def check_finite(
         what = f"observation has {flat[slot, bad_entries[0]]} at entry {int(bad_entries[0])}"
     step = int(episode_steps[game])
     raise NonFiniteValueError(
-        f"{env_name}: game {game}, agent {agent} ({agent_names[agent]}): {what} at step {step} of its episode "
+        f"{env_name}: game {first_game + game}, agent {agent} ({agent_names[agent]}): {what} at step {step} of its episode "
         f"({int(bad_obs.sum())} observations and {int(bad_rewards.sum())} rewards of this step are not finite). "
         "Fix the env; SB3's VecCheckNan(env, raise_exception=True) also checks the actions that led there; "
         "make_multiagent_vec_env(..., check_finite=False) turns this check off."
@@ -263,7 +286,8 @@ class MultiAgentVecEnv(VecEnv):
 
     :param env_fn: callable returning one PettingZoo ``ParallelEnv`` (one game)
     :param n_games: number of game copies G; the vec env has ``G * n_agents`` slots
-    :param num_cpus: SuperSuit worker processes (0 or 1: all games in this process)
+    :param num_cpus: worker processes stepping the games (:mod:`sb3_saeir.common.game_workers`; at most one per game;
+        0 or 1: all games in this process, through SuperSuit)
     :param mark_truncation: set ``infos[i]["TimeLimit.truncated"]`` when a game is truncated (not terminated), so
         that SB3 bootstraps the value of the final observation. Off by default: time limits are treated as terminal,
         as MAPPO does on MPE, since the observation carries no time feature.
@@ -298,13 +322,25 @@ class MultiAgentVecEnv(VecEnv):
 
         if not hasattr(probe_env.unwrapped, "render_mode"):  # optional in PettingZoo, required by SuperSuit
             probe_env.unwrapped.render_mode = None
-        markov_env = ss.pettingzoo_env_to_vec_env_v1(_NoAgentDeath(probe_env))
-        self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=num_cpus, base_class="gymnasium")
-        self._in_process = not hasattr(self.venv, "pipes")
+        if num_cpus >= 2:
+            self.venv: Any = GameWorkerVecEnv(
+                _WrappedGameFactory(env_fn),
+                self.n_games,
+                min(num_cpus, self.n_games),
+                self.n_agents,
+                observation_space,
+                action_space,
+            )
+        else:
+            markov_env = ss.pettingzoo_env_to_vec_env_v1(_NoAgentDeath(probe_env))
+            self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=0, base_class="gymnasium")
+        self._in_process = not isinstance(self.venv, GameWorkerVecEnv)
         super().__init__(self.n_games * self.n_agents, observation_space, action_space)
         self.metadata = dict(getattr(probe_env, "metadata", {}) or {})
         self._game_seed: int | None = None
-        self._actions: np.ndarray | None = None
+        # double-buffered sampling: groups with a step in flight, and per group its steps not yet returned
+        self._in_flight: set[int] = set()
+        self._staged: dict[int, collections.deque[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict]]]] = {}
         self._init_episode_records()
 
     # ------------------------------------------------------------------ layout helpers
@@ -347,11 +383,9 @@ class MultiAgentVecEnv(VecEnv):
             self.seed(seed)
         if options is None:
             options = self._options[0] if self._options and self._options[0] else None
-        game_seed = self._game_seed
-        if self._in_process:
-            obs, infos = self.venv.reset(seed=game_seed, options=options)
-        else:
-            obs, infos = self._reset_subprocesses(game_seed, options)
+        if self._staged or self._in_flight:
+            self.drain_groups()
+        obs, infos = self.venv.reset(seed=self._game_seed, options=options)
         self.reset_infos = [dict(info) for info in infos]
         self._game_seed = None
         self._reset_seeds()
@@ -366,54 +400,133 @@ class MultiAgentVecEnv(VecEnv):
         metadata_name = (self.metadata or {}).get("name")
         return str(metadata_name) if metadata_name else type(self._probe_env).__name__
 
-    def _reset_subprocesses(self, game_seed: int | None, options: dict | None) -> tuple[np.ndarray, list[dict]]:
-        """Reset SuperSuit's worker processes with non-overlapping per-game seeds.
-
-        SuperSuit sends ``seed + worker_index`` and each worker adds its local game index, so games of different
-        workers share seeds. Here each worker gets ``seed + (index of its first game)``.
-        """
-        from supersuit.vector.multiproc_vec import decompress_info, numpy_deepcopy
-
-        venv = self.venv
-        for worker, pipe in enumerate(venv.pipes):
-            first_game = venv.idx_starts[worker] // self.n_agents
-            worker_seed = None if game_seed is None else game_seed + first_game
-            pipe.send(("reset", (worker_seed, options)))
-        compressed = venv._receive_info()
-        infos = decompress_info(self.num_envs, venv.idx_starts, compressed)
-        return numpy_deepcopy(venv.observations_buffers), infos
-
     # ------------------------------------------------------------------ stepping
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = actions
+        if self._staged or self._in_flight:
+            raise RuntimeError(
+                "step_async called while groups of games step on their own (double-buffered sampling): wait for them "
+                "and return their steps with step_wait, or call drain_groups() and reset()."
+            )
         self.venv.step_async(actions)
 
+    # ------------------------------------------------------------------ double-buffered sampling
+    @property
+    def sampling_groups(self) -> list[range]:
+        """Slot ranges of the groups of games that step on their own (double-buffered sampling): one per worker
+        process; one group of all slots when the games run in this process."""
+        if self._in_process:
+            return [range(self.num_envs)]
+        return list(self.venv.pool.slots_of_worker)
+
+    def step_group_async(self, group: int, actions: np.ndarray) -> None:
+        """Start a step of the games of one of :attr:`sampling_groups`.
+
+        Groups step independently: each may be several steps ahead of another. Once every group has made step ``t``
+        (counted from the last reset), :meth:`step_wait` returns step ``t`` of all slots, as if :meth:`step_async`
+        had been called with all the actions: the episode records, monitors and wrappers see the steps in order.
+
+        :param group: index into :attr:`sampling_groups`
+        :param actions: ``(len(sampling_groups[group]), ...)`` the group's actions
+        """
+        slots = self.sampling_groups[group]
+        if self._in_process:
+            self.venv.step_async(actions)
+            self._in_flight.add(group)
+            return
+        full = np.zeros((self.num_envs, *np.shape(actions)[1:]), dtype=np.asarray(actions).dtype)
+        full[slots.start : slots.stop] = actions  # (rows of the group, ...) -> (n_slots, ...)
+        self.venv.step_async(full, [group])
+        self._in_flight.add(group)
+
+    def step_any_group_wait(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """Wait for the first group in flight to finish its step (checked for NaN/inf, as :meth:`step_wait`).
+
+        :return: the group, its new observations ``(rows, ...)`` and its dones ``(rows,)``
+        """
+        if not self._in_flight:
+            raise RuntimeError("No group of games is stepping: call step_group_async first.")
+        if self._in_process:
+            group, result = 0, self.venv.step_wait()
+        else:
+            group = self.venv.pool.first_done(sorted(self._in_flight))
+            result = self.venv.step_wait([group])
+        self._in_flight.discard(group)
+        obs, rewards, terminations, truncations, infos = result
+        slots = self.sampling_groups[group]
+        if self.check_finite:
+            first_game = slots.start // self.n_agents
+            n_steps = len(self._staged.get(group, ()))  # this group's steps ahead of the records
+            steps = self._episode_lengths[first_game : first_game + len(slots) // self.n_agents] + 1 + n_steps
+            self._check_step_finite(obs, np.asarray(rewards, dtype=np.float32), infos, steps, first_game)
+        self._staged.setdefault(group, collections.deque()).append(result)
+        return group, obs, np.asarray(terminations, dtype=bool) | np.asarray(truncations, dtype=bool)
+
+    @property
+    def n_staged_steps(self) -> int:
+        """Steps that every group has made and :meth:`step_wait` has not yet returned."""
+        if len(self._staged) < len(self.sampling_groups):
+            return 0
+        return min(len(queue) for queue in self._staged.values())
+
+    def _staged_step(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        """The oldest step that every group has made, in slot order."""
+        if self.n_staged_steps == 0:
+            raise RuntimeError(
+                "step_wait called before every group of games made the step: wait for every group "
+                "(step_any_group_wait) first."
+            )
+        parts = [self._staged[group].popleft() for group in range(len(self.sampling_groups))]
+        obs, rewards, terminations, truncations = (np.concatenate([part[i] for part in parts]) for i in range(4))
+        infos = [info for part in parts for info in part[4]]
+        return obs, rewards, terminations, truncations, infos
+
+    def drain_groups(self) -> None:
+        """Wait for the groups' steps in flight and drop the staged ones: the games are then out of step with each
+        other and with the records, so :meth:`reset` must follow (it calls this itself)."""
+        self._staged = {}
+        if self._in_flight:
+            if self._in_process:
+                self.venv.step_wait()
+            else:
+                self.venv.step_wait(sorted(self._in_flight))
+        self._in_flight = set()
+
     def step_wait(self) -> VecEnvStepReturn:
-        obs, rewards, terminations, truncations, infos = self.venv.step_wait()
+        if self._staged:
+            obs, rewards, terminations, truncations, infos = self._staged_step()
+            checked = True
+        else:
+            obs, rewards, terminations, truncations, infos = self.venv.step_wait()
+            checked = False
         terminations = np.asarray(terminations, dtype=bool)
         truncations = np.asarray(truncations, dtype=bool)
         dones = terminations | truncations
         rewards = np.asarray(rewards, dtype=np.float32)
         infos = [dict(info) for info in infos]
-        if self.check_finite:
-            steps = self._episode_lengths + 1
-            check_finite(self._env_name(), obs, rewards, self.n_agents, self.possible_agents, steps)
-            for slot in np.flatnonzero(dones):
-                terminal = infos[slot].get("terminal_observation")
-                if terminal is not None and not np.isfinite(np.asarray(terminal, dtype=np.float64)).all():
-                    check_finite(
-                        self._env_name(),
-                        np.asarray([terminal]),
-                        None,
-                        1,
-                        [self.possible_agents[slot % self.n_agents]],
-                        steps[[slot // self.n_agents]],
-                    )
+        if self.check_finite and not checked:
+            self._check_step_finite(obs, rewards, infos, self._episode_lengths + 1, 0)
         if self.mark_truncation:
             for slot in np.flatnonzero(truncations & ~terminations):
                 infos[slot]["TimeLimit.truncated"] = True
         self._record_episodes(rewards, dones, infos)
         return obs, rewards, dones, infos
+
+    def _check_step_finite(
+        self, obs: np.ndarray, rewards: np.ndarray, infos: list[dict], steps: np.ndarray, first_game: int
+    ) -> None:
+        """Raise :class:`NonFiniteValueError` for a NaN/inf observation, reward or terminal observation of the
+        games ``first_game ..`` (``steps``: the step of each game's episode)."""
+        names = self.possible_agents
+        check_finite(self._env_name(), obs, rewards, self.n_agents, names, steps, first_game)
+        terminations = [bool(info.get("terminal_observation") is not None) for info in infos]
+        for slot in np.flatnonzero(terminations):
+            terminal = infos[slot]["terminal_observation"]
+            if not np.isfinite(np.asarray(terminal, dtype=np.float64)).all():
+                game = slot // self.n_agents
+                check_finite(
+                    self._env_name(), np.asarray([terminal]), None, 1, [names[slot % self.n_agents]],
+                    steps[[game]], first_game + game,
+                )
 
     def _init_episode_records(self) -> None:
         """Per-game episode accumulators (team return = per-step reward averaged over the game's agents)."""
@@ -554,7 +667,8 @@ def make_multiagent_vec_env(
         returning a PettingZoo ``ParallelEnv`` (called with ``task_kwargs``)
     :param n_games: number of game copies
     :param seed: base seed; game ``g`` is reset with ``seed + g``. ``None``: unseeded (games still differ)
-    :param num_cpus: SuperSuit worker processes; 0 keeps every game in this process (fastest on small machines)
+    :param num_cpus: worker processes stepping the games (:mod:`sb3_saeir.common.game_workers`, at most one per
+        game); 0 keeps every game in this process
     :param mark_truncation: set ``TimeLimit.truncated`` in infos when a game hits its time limit
     :param backend: ``"native"``: the task's own batched vec env (the navigation tasks have one, see
         ``docs/tasks.md``; all games in this process); ``"supersuit"``: the games through SuperSuit, as any
@@ -633,6 +747,9 @@ class MultiAgentVecMonitor(VecEnvWrapper):
     :param env_id: written in the CSV header
     :param append: continue an existing CSV instead of overwriting it
     """
+
+    # observations, rewards and dones pass through unchanged (double-buffered sampling may run under this wrapper)
+    passes_steps_through = True
 
     def __init__(self, venv: VecEnv, filename: str | None = None, env_id: str = "games", append: bool = False) -> None:
         super().__init__(venv)

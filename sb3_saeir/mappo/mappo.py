@@ -6,6 +6,7 @@ chunked recurrent PPO update); :class:`~sb3_saeir.SAEIR_PPO` is MAPPO with SAEIR
 
 from __future__ import annotations
 
+import collections
 import inspect
 import io
 import json
@@ -32,6 +33,14 @@ from torch.nn import functional as F
 from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length
 from sb3_saeir.common.callbacks import episode_metric_means
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
+from sb3_saeir.common.sampling import (
+    GroupRandomStreams,
+    GroupStep,
+    base_multiagent_env,
+    double_buffering_obstacle,
+    join_steps,
+    slice_states,
+)
 from sb3_saeir.common.type_aliases import GroupedRecurrentSamples
 from sb3_saeir.common.utils import check_bool
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
@@ -370,6 +379,11 @@ class MAPPO(OnPolicyAlgorithm):
     :param value_loss: ``"huber"`` (MAPPO) or ``"mse"``
     :param huber_delta: Huber delta (10)
     :param target_kl: stop an epoch's updates early when the approximate KL exceeds ``1.5 * target_kl``
+    :param double_buffered: double-buffered sampling (:mod:`sb3_saeir.common.sampling`): with the games in worker
+        processes (``num_cpus >= 2``), each worker's games step while the policy acts for another's. ``"auto"``
+        (default): on whenever the env allows it (games in two or more workers, no wrapper that changes steps);
+        ``True``: on, an error if the env does not allow it; ``False``: the synchronous loop. Same maths; the random
+        draws are made group by group (same seed, same run; ``docs/guide/performance.md``)
     :param rollout_buffer_class: rollout buffer class (a
         :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer` subclass; default that class)
     :param rollout_buffer_kwargs: extra keyword arguments of the rollout buffer
@@ -390,6 +404,7 @@ class MAPPO(OnPolicyAlgorithm):
     }
     policy: MultiAgentActorCriticPolicy
     rollout_buffer: GroupedRecurrentRolloutBuffer
+    double_buffered: bool | str = False  # models saved before the option sample synchronously
 
     def __init__(
         self,
@@ -416,6 +431,7 @@ class MAPPO(OnPolicyAlgorithm):
         value_loss: str = "huber",
         huber_delta: float = 10.0,
         target_kl: float | None = None,
+        double_buffered: bool | str = "auto",
         rollout_buffer_class: type[GroupedRecurrentRolloutBuffer] | None = None,
         rollout_buffer_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
@@ -452,6 +468,8 @@ class MAPPO(OnPolicyAlgorithm):
         check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
         check_tensorboard_log(type(self).__name__, tensorboard_log)
         check_device(type(self).__name__, device)
+        if not (isinstance(double_buffered, bool) or double_buffered == "auto"):
+            raise ValueError(f"double_buffered must be True, False or 'auto', got {double_buffered!r}.")
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]
@@ -483,6 +501,7 @@ class MAPPO(OnPolicyAlgorithm):
         self.clip_range_vf = clip_range_vf
         self.normalize_advantage = normalize_advantage
         self.target_kl = target_kl
+        self.double_buffered = double_buffered
         self.n_minibatches = n_minibatches
         self.data_chunk_length = data_chunk_length
         self.intrinsic_reward = intrinsic_reward
@@ -629,58 +648,153 @@ class MAPPO(OnPolicyAlgorithm):
         n_rollout_steps: int,
     ) -> bool:
         """Collect ``n_rollout_steps`` steps of every game (GRU states and per-scale values stored), then the
-        bootstrap values, the intrinsic rewards and one GAE pass, in that order."""
+        bootstrap values, the intrinsic rewards and one GAE pass, in that order.
+
+        With ``double_buffered`` on, the worker processes' groups of games step on their own while the policy acts
+        for the group that came back first (:mod:`sb3_saeir.common.sampling`); the buffer is filled as by the
+        synchronous loop."""
         assert isinstance(rollout_buffer, GroupedRecurrentRolloutBuffer)
         assert self._last_obs is not None and self._last_states is not None
         self.policy.set_training_mode(False)
-        n_steps = 0
         rollout_buffer.reset()
         callback.on_rollout_start()
+        if self._use_double_buffering(env):
+            collected = self._collect_steps_double_buffered(env, callback, rollout_buffer, n_rollout_steps)
+        else:
+            collected = self._collect_steps(env, callback, rollout_buffer, n_rollout_steps)
+        if not collected:
+            return False
+        new_obs, dones = self._last_obs, self._last_episode_starts
+        with th.no_grad():
+            last_starts = th.as_tensor(dones, dtype=th.float32, device=self.device)
+            last_values = self.policy.predict_values(obs_as_tensor(new_obs, self.device), self._last_states, last_starts)  # type: ignore[arg-type]
+        rollout_buffer.set_last_step(last_values, dones)  # type: ignore[arg-type]
+        for intrinsic_reward in self._intrinsic_rewards:
+            intrinsic_reward.add_to(rollout_buffer)
+        rollout_buffer.compute_returns_and_advantage(
+            last_values=last_values, dones=dones, denormalize=self.policy.denormalize_values_numpy  # type: ignore[arg-type]
+        )
+        callback.update_locals(locals())
+        callback.on_rollout_end()
+        return True
+
+    def _act(self, obs: np.ndarray, states: MultiAgentStates, episode_starts: np.ndarray) -> GroupStep:
+        """The policy's step for the slots of ``obs`` (all slots, or one group of games)."""
+        with th.no_grad():
+            obs_tensor = obs_as_tensor(obs, self.device)  # type: ignore[arg-type]
+            starts = th.as_tensor(episode_starts, dtype=th.float32, device=self.device)
+            actions, values, log_probs, new_states = self.policy(obs_tensor, states, starts)
+        return GroupStep(obs, episode_starts, states, actions.cpu().numpy(), values, log_probs, new_states)
+
+    def _env_actions(self, actions: np.ndarray) -> np.ndarray:
+        """The actions as sent to the env (clipped to a ``Box`` action space)."""
+        if isinstance(self.action_space, spaces.Box):
+            return np.clip(actions, self.action_space.low, self.action_space.high)
+        return actions
+
+    def _store_step(
+        self,
+        rollout_buffer: GroupedRecurrentRolloutBuffer,
+        step: GroupStep,
+        rewards: np.ndarray,
+        dones: np.ndarray,
+        infos: list[dict],
+        new_obs: np.ndarray,
+    ) -> None:
+        """Add one step of all slots to the buffer and move ``_last_obs``, ``_last_episode_starts``, ``_last_states``."""
+        actions = step.actions.reshape(-1, 1) if isinstance(self.action_space, spaces.Discrete) else step.actions
+        # (E,) -> (E, K): each critic scale gets the env reward plus its own bootstrap where a game was truncated
+        scale_rewards = np.repeat(np.asarray(rewards, dtype=np.float32)[:, None], self.policy.n_scales, axis=1)
+        scale_rewards += self._truncation_bootstrap(infos, dones, step.new_states)
+        rollout_buffer.add(
+            step.obs,  # type: ignore[arg-type]
+            actions,
+            scale_rewards,
+            step.episode_starts,
+            step.values,
+            step.log_probs,
+            actor_states=step.states.actor,
+            critic_states=step.states.critic,
+        )
+        self._last_obs = new_obs  # type: ignore[assignment]
+        self._last_episode_starts = dones
+        self._last_states = step.new_states
+
+    def _collect_steps(
+        self, env: VecEnv, callback: BaseCallback, rollout_buffer: GroupedRecurrentRolloutBuffer, n_rollout_steps: int
+    ) -> bool:
+        """The synchronous loop: the policy acts for every slot, then every game steps."""
+        n_steps = 0
         while n_steps < n_rollout_steps:
-            with th.no_grad():
-                obs_tensor = obs_as_tensor(self._last_obs, self.device)  # type: ignore[arg-type]
-                episode_starts = th.as_tensor(self._last_episode_starts, dtype=th.float32, device=self.device)
-                actions, values, log_probs, states = self.policy(obs_tensor, self._last_states, episode_starts)
-            actions_np = actions.cpu().numpy()
-            clipped_actions = actions_np
-            if isinstance(self.action_space, spaces.Box):
-                clipped_actions = np.clip(actions_np, self.action_space.low, self.action_space.high)
-            new_obs, rewards, dones, infos = env.step(clipped_actions)
+            step = self._act(self._last_obs, self._last_states, self._last_episode_starts)  # type: ignore[arg-type]
+            new_obs, rewards, dones, infos = env.step(self._env_actions(step.actions))
             self.num_timesteps += env.num_envs
             callback.update_locals(locals())
             if not callback.on_step():
                 return False
             self._update_info_buffer(infos, dones)
             n_steps += 1
-            if isinstance(self.action_space, spaces.Discrete):
-                actions_np = actions_np.reshape(-1, 1)
-            # (E,) -> (E, K): each critic scale gets the env reward plus its own bootstrap where a game was truncated
-            scale_rewards = np.repeat(np.asarray(rewards, dtype=np.float32)[:, None], self.policy.n_scales, axis=1)
-            scale_rewards += self._truncation_bootstrap(infos, dones, states)
-            rollout_buffer.add(
-                self._last_obs,  # type: ignore[arg-type]
-                actions_np,
-                scale_rewards,
-                self._last_episode_starts,  # type: ignore[arg-type]
-                values,
-                log_probs,
-                actor_states=self._last_states.actor,
-                critic_states=self._last_states.critic,
-            )
-            self._last_obs = new_obs  # type: ignore[assignment]
-            self._last_episode_starts = dones
-            self._last_states = states
-        with th.no_grad():
-            last_starts = th.as_tensor(dones, dtype=th.float32, device=self.device)
-            last_values = self.policy.predict_values(obs_as_tensor(new_obs, self.device), self._last_states, last_starts)  # type: ignore[arg-type]
-        rollout_buffer.set_last_step(last_values, dones)
-        for intrinsic_reward in self._intrinsic_rewards:
-            intrinsic_reward.add_to(rollout_buffer)
-        rollout_buffer.compute_returns_and_advantage(
-            last_values=last_values, dones=dones, denormalize=self.policy.denormalize_values_numpy
-        )
-        callback.update_locals(locals())
-        callback.on_rollout_end()
+            self._store_step(rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
+        return True
+
+    def _use_double_buffering(self, env: VecEnv) -> bool:
+        """Whether this rollout is sampled double-buffered (``double_buffered``; ``"auto"``: when the env allows)."""
+        setting = self.double_buffered
+        if setting is False:
+            return False
+        obstacle = double_buffering_obstacle(env)
+        if obstacle is not None and setting is True:
+            raise ValueError(f"{type(self).__name__}(double_buffered=True) cannot sample this env: {obstacle}.")
+        return obstacle is None
+
+    def _collect_steps_double_buffered(
+        self, env: VecEnv, callback: BaseCallback, rollout_buffer: GroupedRecurrentRolloutBuffer, n_rollout_steps: int
+    ) -> bool:
+        """The double-buffered loop: each group of games steps on its own; a step of all slots is stored (and the
+        callbacks called) once every group has made it (:mod:`sb3_saeir.common.sampling`)."""
+        base, _ = base_multiagent_env(env)
+        groups = base.sampling_groups
+        n_agents = self.policy.n_agents
+        streams = GroupRandomStreams(len(groups), self.device)
+        in_buffer: list[collections.deque[GroupStep]] = [collections.deque() for _ in groups]  # sent, not yet stored
+        sent = [0] * len(groups)
+
+        def act_and_send(group: int, obs: np.ndarray, starts: np.ndarray, states: MultiAgentStates) -> None:
+            step = streams.run(group, lambda: self._act(obs, states, starts))
+            base.step_group_async(group, self._env_actions(step.actions))
+            in_buffer[group].append(step)
+            sent[group] += 1
+
+        assert self._last_obs is not None and self._last_states is not None
+        last_obs = np.asarray(self._last_obs)
+        for group, slots in enumerate(groups):
+            states = slice_states(self._last_states, slots, n_agents)
+            act_and_send(group, last_obs[slots.start : slots.stop], self._last_episode_starts[slots.start : slots.stop], states)
+        n_steps = 0
+        try:
+            while n_steps < n_rollout_steps:
+                if base.n_staged_steps == 0:
+                    group, group_obs, group_dones = base.step_any_group_wait()
+                    if sent[group] < n_rollout_steps:
+                        act_and_send(group, group_obs, group_dones, in_buffer[group][-1].new_states)
+                    continue
+                new_obs, rewards, dones, infos = env.step_wait()  # the oldest step every group has made
+                step = join_steps([queue.popleft() for queue in in_buffer])
+                self.num_timesteps += env.num_envs
+                callback.update_locals(locals())
+                if not callback.on_step():
+                    base.drain_groups()
+                    self._last_obs = None  # the groups are out of step: the next learn() resets the env
+                    return False
+                self._update_info_buffer(infos, dones)
+                n_steps += 1
+                self._store_step(rollout_buffer, step, rewards, dones, infos, new_obs)
+        except BaseException:
+            base.drain_groups()
+            self._last_obs = None
+            raise
+        finally:
+            streams.finish()
         return True
 
     def _truncation_bootstrap(self, infos: list[dict], dones: np.ndarray, states: MultiAgentStates) -> np.ndarray:

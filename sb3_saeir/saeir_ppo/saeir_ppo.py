@@ -63,6 +63,8 @@ class SAEIR_PPO(MAPPO):
     :param value_loss: ``"huber"`` (MAPPO) or ``"mse"``
     :param huber_delta: Huber delta (10)
     :param target_kl: stop an epoch's updates early when the approximate KL exceeds ``1.5 * target_kl``
+    :param double_buffered: double-buffered sampling with the games in worker processes (``True``, ``False`` or
+        ``"auto"``: on whenever the env allows it); see :class:`~sb3_saeir.MAPPO`
     :param rollout_buffer_class: rollout buffer class (default
         :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer`)
     :param rollout_buffer_kwargs: extra keyword arguments of the rollout buffer
@@ -107,6 +109,7 @@ class SAEIR_PPO(MAPPO):
         value_loss: str = "huber",
         huber_delta: float = 10.0,
         target_kl: float | None = None,
+        double_buffered: bool | str = "auto",
         rollout_buffer_class: type[GroupedRecurrentRolloutBuffer] | None = None,
         rollout_buffer_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
@@ -141,6 +144,7 @@ class SAEIR_PPO(MAPPO):
             value_loss=value_loss,
             huber_delta=huber_delta,
             target_kl=target_kl,
+            double_buffered=double_buffered,
             rollout_buffer_class=rollout_buffer_class,
             rollout_buffer_kwargs=rollout_buffer_kwargs,
             stats_window_size=stats_window_size,

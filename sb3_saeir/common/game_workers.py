@@ -1,0 +1,496 @@
+"""Worker processes that step blocks of games, with observations and rewards in shared memory.
+
+:class:`GameWorkerPool` is what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` runs on with ``num_cpus >= 2``
+(``docs/guide/performance.md``, "Football across cores"). Worker ``w`` builds and steps the contiguous block of games
+``games_of_worker[w]``; one step is one message to each worker (``"step"``) and one reply (the infos of its slots),
+with actions, observations, rewards, terminations and truncations in shared arrays laid out as the vec env's slots
+(``slot = game * n_agents + agent``). Workers can be stepped one block at a time (:meth:`GameWorkerPool.step_async`
+with ``workers``), which is what double-buffered sampling uses.
+
+Each game behaves as in SuperSuit's in-process path (``pettingzoo_env_to_vec_env_v1`` + ``concat_vec_envs_v1``):
+``reset(seed=s)`` resets game ``g`` with ``s + g``; a game whose agents are all done puts each agent's last observation
+into its info as ``terminal_observation``, is reset without a seed, and its reset infos are merged into the step's
+infos. The same seeds and actions give the same observations, rewards, dones and infos (tested against the in-process
+path). Errors in a worker come back as :class:`GameWorkerError` with the worker's traceback; a worker that dies is
+reported as one; :meth:`GameWorkerPool.close` ends every worker (terminating those that do not answer).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import signal
+import traceback
+from collections.abc import Callable, Sequence
+from multiprocessing import connection as mp_connection
+from multiprocessing.connection import Connection
+from typing import Any
+
+import cloudpickle
+import numpy as np
+from gymnasium import spaces
+from pettingzoo.utils.env import ParallelEnv
+
+# Seconds a worker gets to answer "close" before it is terminated.
+CLOSE_TIMEOUT_S = 10.0
+
+
+class GameWorkerError(RuntimeError):
+    """A game worker process raised an error or died."""
+
+
+def split_games(n_games: int, n_workers: int) -> list[range]:
+    """Contiguous, balanced blocks of games, one per worker (the first ``n_games % n_workers`` get one more).
+
+    :param n_games: games in all
+    :param n_workers: worker processes (at most ``n_games``)
+    :return: ``n_workers`` ranges of game indices covering ``0 .. n_games - 1`` in order
+    """
+    base, extra = divmod(n_games, n_workers)
+    blocks, start = [], 0
+    for worker in range(n_workers):
+        size = base + (1 if worker < extra else 0)
+        blocks.append(range(start, start + size))
+        start += size
+    return blocks
+
+
+class SharedSlots:
+    """The shared arrays of a pool: one row per slot (``n_games * n_agents`` rows).
+
+    :param ctx: the multiprocessing context
+    :param n_slots: rows
+    :param observation_space: one agent's observation space (a ``Box``)
+    :param action_space: one agent's action space
+    """
+
+    def __init__(self, ctx: Any, n_slots: int, observation_space: spaces.Box, action_space: spaces.Space) -> None:
+        self.n_slots = n_slots
+        self.obs_shape = tuple(observation_space.shape)  # type: ignore[arg-type]
+        self.obs_dtype = np.dtype(observation_space.dtype)
+        self.action_shape = tuple(action_space.shape or ())
+        self.action_dtype = np.dtype(action_space.dtype if action_space.dtype is not None else np.int64)
+        obs_bytes = n_slots * int(np.prod(self.obs_shape, dtype=np.int64)) * self.obs_dtype.itemsize
+        action_bytes = n_slots * int(np.prod(self.action_shape, dtype=np.int64)) * self.action_dtype.itemsize
+        self.raw = {
+            "obs": ctx.RawArray("b", max(obs_bytes, 1)),
+            "actions": ctx.RawArray("b", max(action_bytes, 1)),
+            "rewards": ctx.RawArray("b", n_slots * 4),
+            "terminations": ctx.RawArray("b", n_slots),
+            "truncations": ctx.RawArray("b", n_slots),
+        }
+        self.attach()
+
+    def attach(self) -> None:
+        """Make the numpy views of the raw arrays (in the parent and, after unpickling, in a worker)."""
+        n = self.n_slots
+        self.obs = np.frombuffer(self.raw["obs"], dtype=self.obs_dtype, count=n * int(np.prod(self.obs_shape)))
+        self.obs = self.obs.reshape(n, *self.obs_shape)  # (n_slots * prod(shape),) -> (n_slots, *obs_shape)
+        count = n * int(np.prod(self.action_shape, dtype=np.int64))
+        self.actions = np.frombuffer(self.raw["actions"], dtype=self.action_dtype, count=count)
+        self.actions = self.actions.reshape(n, *self.action_shape)  # (n_slots * prod(shape),) -> (n_slots, ...)
+        self.rewards = np.frombuffer(self.raw["rewards"], dtype=np.float32, count=n)
+        self.terminations = np.frombuffer(self.raw["terminations"], dtype=np.bool_, count=n)
+        self.truncations = np.frombuffer(self.raw["truncations"], dtype=np.bool_, count=n)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        for view in ("obs", "actions", "rewards", "terminations", "truncations"):
+            state.pop(view, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self.attach()
+
+
+class GameBlock:
+    """The games of one worker, stepped as SuperSuit's in-process path steps them (module docstring).
+
+    :param games: parallel envs (already wrapped as the vec env wraps them)
+    :param first_slot: slot of the block's first agent
+    :param slots: the pool's shared arrays
+    """
+
+    def __init__(self, games: list[ParallelEnv], first_slot: int, slots: SharedSlots) -> None:
+        self.games = games
+        self.slots = slots
+        self.agents = list(games[0].possible_agents)
+        self.n_agents = len(self.agents)
+        self.first_slot = first_slot
+
+    def _rows(self, game: int) -> slice:
+        start = self.first_slot + game * self.n_agents
+        return slice(start, start + self.n_agents)
+
+    def _write_obs(self, game: int, observations: dict[str, Any]) -> None:
+        rows = self.slots.obs[self._rows(game)]
+        for agent_index, agent in enumerate(self.agents):
+            rows[agent_index] = observations[agent]
+
+    def first_done(self, workers: Sequence[int]) -> int:
+        """Block until one of ``workers`` (with work in flight) has answered; return the first in ``workers`` order
+        that has."""
+        pipes = [self.pipes[worker] for worker in workers]
+        ready = set(mp_connection.wait(pipes))
+        return next(worker for worker, pipe in zip(workers, pipes) if pipe in ready)
+
+    def _death_report(self, worker: int) -> tuple[str, str]:
+        """Message and hint for a worker that ended without answering."""
+        process = self.processes[worker]
+        process.join(timeout=1.0)
+        return (
+            f"the worker process ended without answering (exit code {process.exitcode})",
+            "Workers start with multiprocessing's forkserver or spawn method, which imports the main module again: a "
+            "script that creates the env at import time needs its code under `if __name__ == \"__main__\":`. "
+            "Otherwise the worker was killed (out of memory?) or crashed inside the game's native code.",
+        )
+
+    def reset(self, seeds: Sequence[int | None], options: dict | None) -> list[dict]:
+        """Reset every game (game ``i`` with ``seeds[i]``); write the observations; return the slots' infos."""
+        infos: list[dict] = []
+        for game, (env, seed) in enumerate(zip(self.games, seeds)):
+            observations, game_infos = env.reset(seed=seed, options=options)
+            self._write_obs(game, observations)
+            rows = self._rows(game)
+            self.slots.rewards[rows] = 0.0
+            self.slots.terminations[rows] = False
+            self.slots.truncations[rows] = False
+            infos.extend(game_infos.get(agent, {}) for agent in self.agents)
+        return infos
+
+    def step(self) -> list[dict]:
+        """Step every game with the actions in the shared array; auto-reset finished games; return the infos."""
+        infos: list[dict] = []
+        for game, env in enumerate(self.games):
+            rows = self._rows(game)
+            actions = self.slots.actions[rows]
+            live = set(env.agents)
+            action_dict = {agent: actions[i] for i, agent in enumerate(self.agents) if agent in live}
+            observations, rewards, terminations, truncations, game_infos = env.step(action_dict)
+            terminated = np.array([bool(terminations.get(agent, False)) for agent in self.agents])
+            truncated = np.array([bool(truncations.get(agent, False)) for agent in self.agents])
+            self.slots.rewards[rows] = [rewards.get(agent, 0) for agent in self.agents]
+            self.slots.terminations[rows] = terminated
+            self.slots.truncations[rows] = truncated
+            slot_infos = [game_infos.get(agent, {}) for agent in self.agents]
+            if (terminated | truncated).all():
+                for agent, info in zip(self.agents, slot_infos):
+                    if agent in observations:
+                        info["terminal_observation"] = observations[agent]
+                observations, reset_infos = env.reset()
+                slot_infos = [{**info, **reset_infos.get(agent, {})} for agent, info in zip(self.agents, slot_infos)]
+            self._write_obs(game, observations)
+            infos.extend(slot_infos)
+        return infos
+
+    def close(self) -> None:
+        for env in self.games:
+            env.close()
+
+
+def worker_main(
+    make_games: bytes, first_slot: int, slots: SharedSlots, pipe: Connection, parent_end: Connection
+) -> None:
+    """A worker's loop: build the block's games, then answer ``reset``, ``step`` and ``close`` messages.
+
+    :param make_games: cloudpickled callable returning the block's list of games
+    :param first_slot: slot of the block's first agent
+    :param slots: the shared arrays
+    :param pipe: this worker's end of the pipe
+    :param parent_end: the parent's end (closed here, so that the worker sees EOF if the parent dies)
+    """
+    parent_end.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle: it closes the workers
+    block: GameBlock | None = None
+    try:
+        block = GameBlock(cloudpickle.loads(make_games)(), first_slot, slots)
+        pipe.send(("ok", None))
+        while True:
+            command, data = pipe.recv()
+            if command == "step":
+                pipe.send(("ok", block.step()))
+            elif command == "reset":
+                pipe.send(("ok", block.reset(*data)))
+            elif command == "render":
+                pipe.send(("ok", block.games[0].render()))
+            elif command == "close":
+                block.close()
+                pipe.send(("ok", None))
+                return
+            else:
+                raise ValueError(f"unknown command {command!r}")
+    except EOFError:  # the parent is gone
+        return
+    except BaseException as error:  # noqa: BLE001 - reported to the parent, which raises it
+        try:
+            pipe.send(("error", (f"{type(error).__name__}: {error}", traceback.format_exc())))
+        except (BrokenPipeError, OSError):
+            pass
+
+
+class GameWorkerPool:
+    """``n_workers`` processes stepping contiguous blocks of ``n_games`` games (module docstring).
+
+    :param env_fn: callable returning one game (a PettingZoo ``ParallelEnv``), called ``n_games`` times in the workers
+    :param n_games: games in all
+    :param n_workers: worker processes, ``1 <= n_workers <= n_games``
+    :param n_agents: agents per game
+    :param observation_space: one agent's observation space
+    :param action_space: one agent's action space
+    :param start_method: multiprocessing start method; ``None``: ``"forkserver"`` where available, else ``"spawn"``
+        (as SB3's ``SubprocVecEnv``; ``"fork"`` is faster to start but unsafe with threads in the parent)
+    """
+
+    def __init__(
+        self,
+        env_fn: Callable[[], ParallelEnv],
+        n_games: int,
+        n_workers: int,
+        n_agents: int,
+        observation_space: spaces.Box,
+        action_space: spaces.Space,
+        start_method: str | None = None,
+    ) -> None:
+        if not 1 <= n_workers <= n_games:
+            raise ValueError(f"n_workers must be between 1 and n_games={n_games}, got {n_workers}.")
+        if start_method is None:
+            start_method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+        ctx = mp.get_context(start_method)
+        self.n_games = n_games
+        self.n_agents = n_agents
+        self.games_of_worker = split_games(n_games, n_workers)
+        self.slots_of_worker = [range(b.start * n_agents, b.stop * n_agents) for b in self.games_of_worker]
+        self.slots = SharedSlots(ctx, n_games * n_agents, observation_space, action_space)
+        self.pipes: list[Connection] = []
+        self.processes: list[Any] = []
+        self._waiting: set[int] = set()
+        self.closed = False
+        for games, slot_range in zip(self.games_of_worker, self.slots_of_worker):
+            make_games = cloudpickle.dumps(_GameFactory(env_fn, len(games)))
+            parent_end, child_end = ctx.Pipe()
+            process = ctx.Process(
+                target=worker_main,
+                args=(make_games, slot_range.start, self.slots, child_end, parent_end),
+                daemon=True,
+            )
+            process.start()
+            child_end.close()
+            self.pipes.append(parent_end)
+            self.processes.append(process)
+        self._waiting = set(range(n_workers))
+        try:
+            self._receive(range(n_workers))
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def n_workers(self) -> int:
+        return len(self.pipes)
+
+    @property
+    def busy(self) -> set[int]:
+        """The workers with a step (or reset) in flight."""
+        return set(self._waiting)
+
+    def _send(self, workers: Sequence[int], message: tuple[str, Any]) -> None:
+        for worker in workers:
+            if worker in self._waiting:
+                raise RuntimeError(f"worker {worker} is still stepping: call step_wait before sending it more work.")
+            self.pipes[worker].send(message)
+            self._waiting.add(worker)
+
+    def _receive(self, workers: Sequence[int]) -> list[Any]:
+        """The replies of ``workers`` (in that order); a worker's error is raised here, after every reply is read."""
+        replies, failure = [], None
+        for worker in workers:
+            if worker not in self._waiting:
+                raise RuntimeError(f"worker {worker} has no work in flight (step_async first).")
+            try:
+                status, data = self.pipes[worker].recv()
+            except (EOFError, ConnectionResetError, OSError):
+                status, data = "error", self._death_report(worker)
+            self._waiting.discard(worker)
+            if status == "error" and failure is None:
+                failure = (worker, data)
+            replies.append(data)
+        if failure is not None:
+            worker, (message, trace) = failure
+            games = self.games_of_worker[worker]
+            self.close()
+            raise GameWorkerError(
+                f"Game worker {worker} (games {games.start}-{games.stop - 1}) failed: {message}\n"
+                f"Worker traceback:\n{trace}"
+            )
+        return replies
+
+    def first_done(self, workers: Sequence[int]) -> int:
+        """Block until one of ``workers`` (with work in flight) has answered; return the first in ``workers`` order
+        that has."""
+        pipes = [self.pipes[worker] for worker in workers]
+        ready = set(mp_connection.wait(pipes))
+        return next(worker for worker, pipe in zip(workers, pipes) if pipe in ready)
+
+    def _death_report(self, worker: int) -> tuple[str, str]:
+        """Message and hint for a worker that ended without answering."""
+        process = self.processes[worker]
+        process.join(timeout=1.0)
+        return (
+            f"the worker process ended without answering (exit code {process.exitcode})",
+            "Workers start with multiprocessing's forkserver or spawn method, which imports the main module again: a "
+            "script that creates the env at import time needs its code under `if __name__ == \"__main__\":`. "
+            "Otherwise the worker was killed (out of memory?) or crashed inside the game's native code.",
+        )
+
+    def reset(self, seeds: Sequence[int | None], options: dict | None) -> list[dict]:
+        """Reset every game (game ``g`` with ``seeds[g]``) and wait; the observations are in :attr:`slots`.
+
+        :param seeds: one seed (or ``None``) per game
+        :param options: reset options for every game
+        :return: the infos of every slot
+        """
+        workers = range(self.n_workers)
+        for worker in workers:
+            block = self.games_of_worker[worker]
+            self._send([worker], ("reset", ([seeds[g] for g in block], options)))
+        return [info for infos in self._receive(workers) for info in infos]
+
+    def step_async(self, actions: np.ndarray, workers: Sequence[int] | None = None) -> None:
+        """Write the actions of the workers' slots into shared memory and tell those workers to step.
+
+        :param actions: ``(n_slots, ...)`` actions of every slot (only the given workers' rows are read)
+        :param workers: the workers to step (default: all)
+        """
+        workers = range(self.n_workers) if workers is None else workers
+        for worker in workers:
+            rows = self.slots_of_worker[worker]
+            self.slots.actions[rows.start : rows.stop] = actions[rows.start : rows.stop]
+        self._send(workers, ("step", None))
+
+    def step_wait(self, workers: Sequence[int] | None = None) -> list[dict]:
+        """Wait for the workers' step; their rows of :attr:`slots` then hold the new observations, rewards and dones.
+
+        :param workers: the workers to wait for (default: all)
+        :return: the infos of those workers' slots, in slot order
+        """
+        workers = range(self.n_workers) if workers is None else workers
+        return [info for infos in self._receive(workers) for info in infos]
+
+    def render_first_game(self) -> Any:
+        """The ``render()`` result of game 0 (in worker 0)."""
+        self._send([0], ("render", None))
+        return self._receive([0])[0]
+
+    def close(self) -> None:
+        """Ask every worker to close its games, then end the processes (terminated after :data:`CLOSE_TIMEOUT_S`)."""
+        if self.closed:
+            return
+        self.closed = True
+        for worker, (pipe, process) in enumerate(zip(self.pipes, self.processes)):
+            if not process.is_alive():
+                continue
+            try:
+                if worker in self._waiting:  # a step in flight: let it finish first
+                    if pipe.poll(CLOSE_TIMEOUT_S):
+                        pipe.recv()
+                pipe.send(("close", None))
+                if pipe.poll(CLOSE_TIMEOUT_S):
+                    pipe.recv()
+            except (BrokenPipeError, EOFError, ConnectionResetError, OSError):
+                pass
+        for process in self.processes:
+            process.join(timeout=CLOSE_TIMEOUT_S)
+            if process.is_alive():
+                process.terminate()
+                process.join(timeout=CLOSE_TIMEOUT_S)
+        for pipe in self.pipes:
+            pipe.close()
+        self._waiting.clear()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+
+class _GameFactory:
+    """Picklable ``() -> list of n games`` (each game ``env_fn()``)."""
+
+    def __init__(self, env_fn: Callable[[], ParallelEnv], n: int) -> None:
+        self.env_fn = env_fn
+        self.n = n
+
+    def __call__(self) -> list[ParallelEnv]:
+        return [self.env_fn() for _ in range(self.n)]
+
+
+class GameWorkerVecEnv:
+    """The gymnasium-style vector env of SuperSuit's ``concat_vec_envs_v1`` over a :class:`GameWorkerPool`: what
+    :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` steps when its games run in worker processes.
+
+    :param env_fn: callable returning one game, already wrapped
+    :param n_games: games in all
+    :param n_workers: worker processes
+    :param n_agents: agents per game
+    :param observation_space: one agent's observation space
+    :param action_space: one agent's action space
+    :param start_method: see :class:`GameWorkerPool`
+    """
+
+    def __init__(
+        self,
+        env_fn: Callable[[], ParallelEnv],
+        n_games: int,
+        n_workers: int,
+        n_agents: int,
+        observation_space: spaces.Box,
+        action_space: spaces.Space,
+        start_method: str | None = None,
+    ) -> None:
+        self.pool = GameWorkerPool(env_fn, n_games, n_workers, n_agents, observation_space, action_space, start_method)
+        self.num_envs = n_games * n_agents
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
+        """Reset game ``g`` with ``seed + g`` (or unseeded); return copies of the observations and the infos."""
+        seeds = [None if seed is None else seed + game for game in range(self.pool.n_games)]
+        infos = self.pool.reset(seeds, options)
+        return self.pool.slots.obs.copy(), infos
+
+    def step_async(self, actions: np.ndarray, workers: Sequence[int] | None = None) -> None:
+        """Step the games of ``workers`` (default: all) with their rows of ``actions`` ``(n_slots, ...)``."""
+        self.pool.step_async(np.asarray(actions), workers)
+
+    def step_wait(
+        self, workers: Sequence[int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        """Wait for the step of ``workers`` (default: all); copies of their rows and their slots' infos.
+
+        :return: observations, rewards, terminations, truncations ``(n_rows, ...)`` and infos of the workers' slots
+        """
+        infos = self.pool.step_wait(workers)
+        rows = self.rows_of(workers)
+        slots = self.pool.slots
+        return (
+            slots.obs[rows].copy(),
+            slots.rewards[rows].copy(),
+            slots.terminations[rows].copy(),
+            slots.truncations[rows].copy(),
+            infos,
+        )
+
+    def rows_of(self, workers: Sequence[int] | None) -> slice:
+        """The slot rows of consecutive ``workers`` (default: all)."""
+        if workers is None:
+            return slice(0, self.num_envs)
+        workers = sorted(workers)
+        if workers != list(range(workers[0], workers[-1] + 1)):
+            raise ValueError(f"workers must be consecutive, got {workers}.")
+        return slice(self.pool.slots_of_worker[workers[0]].start, self.pool.slots_of_worker[workers[-1]].stop)
+
+    def render(self) -> Any:
+        """Game 0's ``render()`` (SuperSuit renders the first game only)."""
+        return self.pool.render_first_game()
+
+    def close(self) -> None:
+        self.pool.close()

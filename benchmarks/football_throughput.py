@@ -200,7 +200,8 @@ def main() -> None:
                         engine_s = 1.0 / result["env_steps_per_cpu_s"]
                     mode = " groups" if groups else ""
                     print(
-                        f"random {task:>22} games={n_games} num_cpus={num_cpus}{mode}: {result['env_steps_per_s']:7.1f} env steps/s "
+                        f"random {task:>22} games={n_games} num_cpus={num_cpus}{mode}: "
+                        f"{result['env_steps_per_s']:7.1f} env steps/s "
                         f"({result['env_steps_per_cpu_s']:6.1f} per CPU-s, {result['episodes']:.0f} episodes, "
                         f"{result['busy']:.0%} of the CPUs busy)",
                         flush=True,

@@ -145,12 +145,16 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
         overrides["n_timesteps"] = args.n_timesteps
     if args.num_cpus is not None:
         overrides["num_cpus"] = args.num_cpus
+    if args.double_buffered is not None:
+        overrides["double_buffered"] = DOUBLE_BUFFERED_FLAGS[args.double_buffered]
     check_hyperparams(args.algo, hyperparams, overrides)
     resolved = {**hyperparams, **overrides}
     check_folder("tensorboard_log", resolved.get("tensorboard_log"))
     return resolved
 
 
+# Values of --double-buffered -> the algorithms' double_buffered.
+DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}
 # Command-line options that may change between a run and its --resume: they do not change what is trained.
 RESUME_FREE_OPTIONS = ("resume", "progress", "verbose")
 # Options of --optimize only, not part of a training run.
@@ -484,6 +488,13 @@ def make_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--num-cpus", type=int, default=None, help="env worker processes (overrides the config's num_cpus; 0: in this process)"
+    )
+    parser.add_argument(
+        "--double-buffered",
+        choices=list(DOUBLE_BUFFERED_FLAGS),
+        default=None,
+        help="double-buffered sampling with env workers (overrides the config's double_buffered; default auto: on when "
+        "num_cpus >= 2)",
     )
     parser.add_argument("--progress", action="store_true", help="show a progress bar")
     parser.add_argument("-params", "--hyperparams", dest="params", nargs="+", default=None, help="overrides key:value")

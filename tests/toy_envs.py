@@ -1,4 +1,8 @@
-"""Tiny PettingZoo parallel envs for bad-input tests."""
+"""Tiny PettingZoo parallel envs for bad-input, worker and sampling tests."""
+
+import os
+import random
+import time
 
 import numpy as np
 from gymnasium import spaces
@@ -105,3 +109,30 @@ class ToyMeetEnv(ParallelEnv):
             {a: truncated for a in self.possible_agents},
             {a: {} for a in self.possible_agents},
         )
+
+
+class JitteryMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` whose steps take a random wall time (0-3 ms from the OS's entropy, not from any seed): games
+    in worker processes then come back in an order that changes from run to run."""
+
+    def step(self, actions):
+        time.sleep(random.SystemRandom().random() * 0.003)
+        return super().step(actions)
+
+
+class FailingMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` that raises ``ValueError`` at its third step after a reset."""
+
+    def step(self, actions):
+        if self._t == 2:
+            raise ValueError("the toy game broke at step 3")
+        return super().step(actions)
+
+
+class DyingMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` whose process exits (as in a crash of native code) at its second step after a reset."""
+
+    def step(self, actions):
+        if self._t == 1:
+            os._exit(3)
+        return super().step(actions)

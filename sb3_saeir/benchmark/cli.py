@@ -72,6 +72,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--eval-episodes", type=count, default=20, help="game episodes per evaluation")
     parser.add_argument("-params", "--hyperparams", dest="params", nargs="+", default=None, help="overrides key:value")
     parser.add_argument("--jobs", type=count, default=1, help="parallel local processes")
+    parser.add_argument(
+        "--num-threads",
+        type=count,
+        default=1,
+        help="torch threads per run (1; 2 for one job whose games run in 2 env workers, -params num_cpus:2)",
+    )
     parser.add_argument("--ray-address", default=None, help="run on a Ray cluster (e.g. 'auto' or host:port)")
     parser.add_argument("--out", default="benchmark", help="output folder")
     parser.add_argument(
@@ -105,7 +111,7 @@ def _check_arguments(args: argparse.Namespace) -> str | None:
     for flag, value in (("-n", args.n_timesteps), ("--eval-freq", args.eval_freq), ("--eval-episodes", args.eval_episodes)):
         if value < 1:
             return f"{flag} must be >= 1, got {value}"
-    for flag, value in (("--n-games", args.n_games), ("--jobs", args.jobs)):
+    for flag, value in (("--n-games", args.n_games), ("--jobs", args.jobs), ("--num-threads", args.num_threads)):
         if value is not None and value < 1:
             return f"{flag} must be >= 1, got {value}"
     try:
@@ -238,7 +244,7 @@ def _main(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
         prepare_folders(out, specs, mismatches)
         start = time.time()
-        results = run_all(specs, out, args.jobs, args.ray_address)
+        results = run_all(specs, out, args.jobs, args.ray_address, args.num_threads)
         failures = [f"{RunSpec(**r['spec']).name}\n{r['error']}" for r in results if r["status"] == "failed"]
         atomic_write_text(out / "failures.txt", "\n".join(failures))
         print(f"{len(specs)} runs ({len(failures)} failed) in {time.time() - start:.0f} s")

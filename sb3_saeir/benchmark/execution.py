@@ -133,10 +133,14 @@ def _open_checkpoint(experiment: Any, checkpoint: Path, log: Callable[[str], Non
     return model, state
 
 
-def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
+def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, Any]:
     """Train and evaluate one run in ``folder`` (resuming from its checkpoint); returns its evaluation rows.
 
-    Runs in a worker process (local or Ray): torch uses one thread.
+    Runs in this process or a worker process (local or Ray).
+
+    :param num_threads: torch threads (1, for runs side by side; 2 for one run with its games in 2 env workers, whose
+        update then has the cores the workers leave idle). Not one of the run's settings, though a change can move the
+        last bits of float sums.
 
     :raises ValueError: when the folder holds a run made with other settings
     """
@@ -144,7 +148,7 @@ def execute_run(spec: RunSpec, folder: str) -> dict[str, Any]:
 
     from sb3_saeir.experiment import EVAL_SEED_OFFSET, Experiment
 
-    th.set_num_threads(1)
+    th.set_num_threads(num_threads)
     path = Path(folder)
     record = spec_record(spec)
     ensure_spec_file(path, record)
@@ -237,9 +241,9 @@ def _finish(path: Path, clock: SegmentClock, model: Any) -> None:
     (path / CHECKPOINT_FILE).unlink(missing_ok=True)
 
 
-def _safe_execute(spec: RunSpec, folder: str) -> dict[str, Any]:
+def _safe_execute(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, Any]:
     try:
-        return execute_run(spec, folder)
+        return execute_run(spec, folder, num_threads)
     except Exception:  # a failing run is reported, the others go on
         return {"spec": asdict(spec), "status": "failed", "rows": [], "error": traceback.format_exc()}
 
@@ -259,34 +263,38 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
         process.join(timeout=10)
 
 
-def run_all(specs: list[RunSpec], out: Path, jobs: int = 1, ray_address: str | None = None) -> list[dict[str, Any]]:
+def run_all(
+    specs: list[RunSpec], out: Path, jobs: int = 1, ray_address: str | None = None, num_threads: int = 1
+) -> list[dict[str, Any]]:
     """Run every spec (local processes or Ray); write each run's rows into its folder; return the results.
+
+    :param num_threads: torch threads of each run (see :func:`execute_run`)
 
     Ctrl-C (``KeyboardInterrupt``) stops every job (local worker processes are terminated, Ray tasks cancelled) and
     is raised again.
     """
     results: list[dict[str, Any]] = []
     if ray_address is not None:
-        results = _run_on_ray(specs, out, ray_address)
+        results = _run_on_ray(specs, out, ray_address, num_threads)
     elif jobs > 1:
         pool = ProcessPoolExecutor(max_workers=jobs, initializer=_ignore_sigint)
         try:
-            futures = [pool.submit(_safe_execute, spec, str(run_folder(out, spec))) for spec in specs]
+            futures = [pool.submit(_safe_execute, spec, str(run_folder(out, spec)), num_threads) for spec in specs]
             results = [_store(future.result(), out) for future in as_completed(futures)]
         except BaseException:
             _stop_pool(pool)
             raise
         pool.shutdown()
     else:
-        results = [_store(_safe_execute(spec, str(run_folder(out, spec))), out) for spec in specs]
+        results = [_store(_safe_execute(spec, str(run_folder(out, spec)), num_threads), out) for spec in specs]
     return results
 
 
-def _run_on_ray(specs: list[RunSpec], out: Path, ray_address: str) -> list[dict[str, Any]]:
+def _run_on_ray(specs: list[RunSpec], out: Path, ray_address: str, num_threads: int = 1) -> list[dict[str, Any]]:
     import ray
 
     ray.init(address=ray_address, ignore_reinit_error=True, log_to_driver=False)
-    remote = ray.remote(num_cpus=1)(_safe_execute)
+    remote = ray.remote(num_cpus=num_threads)(_safe_execute)
     results = []
     pending = {}
     for spec in specs:
@@ -294,7 +302,7 @@ def _run_on_ray(specs: list[RunSpec], out: Path, ray_address: str) -> list[dict[
         if (local / "done.json").is_file():
             results.append({"spec": asdict(spec), "status": "skipped", "rows": read_rows(local / "evaluations.csv")})
         else:
-            pending[remote.remote(spec, str(local))] = spec
+            pending[remote.remote(spec, str(local), num_threads)] = spec
     try:
         for ref in pending:
             results.append(_store(ray.get(ref), out))

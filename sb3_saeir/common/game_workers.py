@@ -141,7 +141,7 @@ class GameBlock:
         return (
             f"the worker process ended without answering (exit code {process.exitcode})",
             "Workers start with multiprocessing's forkserver or spawn method, which imports the main module again: a "
-            "script that creates the env at import time needs its code under `if __name__ == \"__main__\":`. "
+            'script that creates the env at import time needs its code under `if __name__ == "__main__":`. '
             "Otherwise the worker was killed (out of memory?) or crashed inside the game's native code.",
         )
 
@@ -188,9 +188,7 @@ class GameBlock:
             env.close()
 
 
-def worker_main(
-    make_games: bytes, first_slot: int, slots: SharedSlots, pipe: Connection, parent_end: Connection
-) -> None:
+def worker_main(make_games: bytes, first_slot: int, slots: SharedSlots, pipe: Connection, parent_end: Connection) -> None:
     """A worker's loop: build the block's games, then answer ``reset``, ``step`` and ``close`` messages.
 
     :param make_games: cloudpickled callable returning the block's list of games
@@ -221,7 +219,7 @@ def worker_main(
                 raise ValueError(f"unknown command {command!r}")
     except EOFError:  # the parent is gone
         return
-    except BaseException as error:  # noqa: BLE001 - reported to the parent, which raises it
+    except BaseException as error:
         try:
             pipe.send(("error", (f"{type(error).__name__}: {error}", traceback.format_exc())))
         except (BrokenPipeError, OSError):
@@ -319,8 +317,7 @@ class GameWorkerPool:
             games = self.games_of_worker[worker]
             self.close()
             raise GameWorkerError(
-                f"Game worker {worker} (games {games.start}-{games.stop - 1}) failed: {message}\n"
-                f"Worker traceback:\n{trace}"
+                f"Game worker {worker} (games {games.start}-{games.stop - 1}) failed: {message}\nWorker traceback:\n{trace}"
             )
         return replies
 
@@ -338,7 +335,7 @@ class GameWorkerPool:
         return (
             f"the worker process ended without answering (exit code {process.exitcode})",
             "Workers start with multiprocessing's forkserver or spawn method, which imports the main module again: a "
-            "script that creates the env at import time needs its code under `if __name__ == \"__main__\":`. "
+            'script that creates the env at import time needs its code under `if __name__ == "__main__":`. '
             "Otherwise the worker was killed (out of memory?) or crashed inside the game's native code.",
         )
 
@@ -410,7 +407,7 @@ class GameWorkerPool:
     def __del__(self) -> None:
         try:
             self.close()
-        except Exception:  # noqa: BLE001 - interpreter shutdown
+        except Exception:
             pass
 
 

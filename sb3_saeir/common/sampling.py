@@ -2,11 +2,12 @@
 
 With the games in worker processes (``make_multiagent_vec_env(..., num_cpus=k)``), each worker's games form a group
 (:attr:`~sb3_saeir.common.vec_env.MultiAgentVecEnv.sampling_groups`). ``MAPPO(..., double_buffered=...)`` (and
-``SAEIR_PPO``) keeps every group stepping: as soon as one group's step comes back, the policy computes that group's next actions and sends
-them, while the other groups' engines run (Sample Factory's double-buffered sampling). The policy is fixed during a
-rollout and every network computes per slot or per game, so the maths is that of the synchronous loop: the buffer
-gets the same observations, actions, rewards, values, log-probs and states in the same layout (tested with a policy
-whose actions do not depend on random draws, ``docs/guide/performance.md``).
+``SAEIR_PPO``) keeps every group stepping: as soon as one group's step comes back, the policy computes that group's
+next actions and sends them, while the other groups' engines run (Sample Factory's double-buffered sampling). The
+policy is fixed during a rollout and every network computes per slot or per game, so the maths is that of the
+synchronous loop: the buffer gets the same observations, actions, rewards, values, log-probs and states in the same
+layout, up to the last bits of float sums over a group's smaller batch (tested with a policy whose actions do not
+depend on random draws; ``docs/guide/performance.md``, "Football across cores").
 
 **Random draws.** The actions (and the hypergraph critics' Gumbel noise) are drawn group by group, so the random
 stream differs from the synchronous loop's. Each group draws from its own torch generator state, seeded from the global
@@ -35,6 +36,14 @@ def base_multiagent_env(env: VecEnv) -> tuple[Any, list[VecEnvWrapper]]:
         wrappers.append(env)
         env = env.venv
     return env, wrappers
+
+
+def games_in_workers(env: VecEnv | None) -> bool:
+    """Whether the games of ``env`` (under its wrappers) run in two or more worker processes."""
+    if env is None:
+        return False
+    base, _ = base_multiagent_env(env)
+    return len(getattr(base, "sampling_groups", ())) >= 2
 
 
 def double_buffering_obstacle(env: VecEnv | None) -> str | None:

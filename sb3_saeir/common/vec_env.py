@@ -472,8 +472,7 @@ class MultiAgentVecEnv(VecEnv):
         """The oldest step that every group has made, in slot order."""
         if self.n_staged_steps == 0:
             raise RuntimeError(
-                "step_wait called before every group of games made the step: wait for every group "
-                "(step_any_group_wait) first."
+                "step_wait called before every group of games made the step: wait for every group (step_any_group_wait) first."
             )
         parts = [self._staged[group].popleft() for group in range(len(self.sampling_groups))]
         obs, rewards, terminations, truncations = (np.concatenate([part[i] for part in parts]) for i in range(4))
@@ -524,8 +523,13 @@ class MultiAgentVecEnv(VecEnv):
             if not np.isfinite(np.asarray(terminal, dtype=np.float64)).all():
                 game = slot // self.n_agents
                 check_finite(
-                    self._env_name(), np.asarray([terminal]), None, 1, [names[slot % self.n_agents]],
-                    steps[[game]], first_game + game,
+                    self._env_name(),
+                    np.asarray([terminal]),
+                    None,
+                    1,
+                    [names[slot % self.n_agents]],
+                    steps[[game]],
+                    first_game + game,
                 )
 
     def _init_episode_records(self) -> None:

@@ -38,6 +38,7 @@ from sb3_saeir.common.sampling import (
     GroupStep,
     base_multiagent_env,
     double_buffering_obstacle,
+    games_in_workers,
     join_steps,
     slice_states,
 )
@@ -404,7 +405,6 @@ class MAPPO(OnPolicyAlgorithm):
     }
     policy: MultiAgentActorCriticPolicy
     rollout_buffer: GroupedRecurrentRolloutBuffer
-    double_buffered: bool | str = False  # models saved before the option sample synchronously
 
     def __init__(
         self,
@@ -658,10 +658,18 @@ class MAPPO(OnPolicyAlgorithm):
         self.policy.set_training_mode(False)
         rollout_buffer.reset()
         callback.on_rollout_start()
-        if self._use_double_buffering(env):
-            collected = self._collect_steps_double_buffered(env, callback, rollout_buffer, n_rollout_steps)
-        else:
-            collected = self._collect_steps(env, callback, rollout_buffer, n_rollout_steps)
+        # with the games in worker processes, the policy's small forward passes run on one torch thread: more threads
+        # would spin on the cores the engines need (the update, with the workers idle, keeps the process's threads)
+        threads = th.get_num_threads()
+        if games_in_workers(env):
+            th.set_num_threads(1)
+        try:
+            if self._use_double_buffering(env):
+                collected = self._collect_steps_double_buffered(env, callback, rollout_buffer, n_rollout_steps)
+            else:
+                collected = self._collect_steps(env, callback, rollout_buffer, n_rollout_steps)
+        finally:
+            th.set_num_threads(threads)
         if not collected:
             return False
         new_obs, dones = self._last_obs, self._last_episode_starts
@@ -672,7 +680,9 @@ class MAPPO(OnPolicyAlgorithm):
         for intrinsic_reward in self._intrinsic_rewards:
             intrinsic_reward.add_to(rollout_buffer)
         rollout_buffer.compute_returns_and_advantage(
-            last_values=last_values, dones=dones, denormalize=self.policy.denormalize_values_numpy  # type: ignore[arg-type]
+            last_values=last_values,
+            dones=dones,
+            denormalize=self.policy.denormalize_values_numpy,  # type: ignore[arg-type]
         )
         callback.update_locals(locals())
         callback.on_rollout_end()
@@ -769,7 +779,8 @@ class MAPPO(OnPolicyAlgorithm):
         last_obs = np.asarray(self._last_obs)
         for group, slots in enumerate(groups):
             states = slice_states(self._last_states, slots, n_agents)
-            act_and_send(group, last_obs[slots.start : slots.stop], self._last_episode_starts[slots.start : slots.stop], states)
+            rows = slice(slots.start, slots.stop)
+            act_and_send(group, last_obs[rows], self._last_episode_starts[rows], states)
         n_steps = 0
         try:
             while n_steps < n_rollout_steps:

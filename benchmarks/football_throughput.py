@@ -17,9 +17,10 @@ Each line also gives the share of the machine it kept busy (CPU-seconds of the p
 per env step (random stepping, one game in this process), and ``l``, the learner's (training's CPU per env step minus
 ``e``: inference, buffer, bonus and update), give the projected wall time of the paper's 25M env steps on ``C`` cores:
 
-- today's loop, synchronous: the games step in parallel over ``min(C, games)`` workers, then the learner runs on one
-  core: ``25e6 x (e / min(C, games) + l)``;
-- with the engine overlapped with the learner (double-buffered sampling): bounded by the learner's serial part and by
+- the synchronous loop (``double_buffered=False``): the games step in parallel over ``min(C, games)`` workers, then
+  the learner runs on one core: ``25e6 x (e / min(C, games) + l)``;
+- with the engine overlapped with the learner (double-buffered sampling, the default with workers; the update still
+  runs while the workers wait, so this is a bound): bounded by the learner's serial part and by
   the total work over the cores: ``25e6 x max(l, (e + l) / C)``.
 
 Seeds are independent runs: ``--ray-address`` of the benchmark fans them out over machines, so S seeds on S machines
@@ -60,7 +61,7 @@ PROJECTED_CORES = (2, 8, 16, 64)
 
 
 def projected_hours(engine_s: float, learner_s: float, cores: int, n_games: int) -> tuple[float, float]:
-    """Projected wall hours of :data:`PAPER_ENV_STEPS` on ``cores`` cores: today's synchronous loop, and with the engine
+    """Projected wall hours of :data:`PAPER_ENV_STEPS` on ``cores`` cores: the synchronous loop, and with the engine
     overlapped with the learner (see the module docstring).
 
     :param engine_s: the engine's CPU-seconds per env step
@@ -83,7 +84,8 @@ def cost_model_lines(engine_s: float, training_s: float, n_games: int) -> list[s
     learner_s = max(training_s - engine_s, 0.0)
     lines = [
         f"cost model: engine e = {engine_s * 1e3:.2f} ms, learner l = {learner_s * 1e3:.2f} ms of CPU per env step; "
-        f"{PAPER_ENV_STEPS / 1e6:.0f}M env steps, wall hours (today's synchronous loop / engine overlapped with the learner):"
+        f"{PAPER_ENV_STEPS / 1e6:.0f}M env steps, wall hours "
+        "(synchronous loop / engine overlapped with the learner, the bound of double-buffered sampling):"
     ]
     for cores in PROJECTED_CORES:
         synchronous, overlapped = projected_hours(engine_s, learner_s, cores, max(n_games, cores))
@@ -214,15 +216,14 @@ def main() -> None:
         for double_buffered in args.train_double_buffered
     ]
     for algo, num_cpus, n_games, double_buffered in runs:
-        result = training(
-            algo, args.train_task, n_games, args.train_iterations, args.seed, num_cpus, double_buffered
-        )
+        result = training(algo, args.train_task, n_games, args.train_iterations, args.seed, num_cpus, double_buffered)
         mode = f" double_buffered={double_buffered}" if double_buffered is not None else ""
         print(
             f"train  {algo} {args.train_task} games={n_games} num_cpus={num_cpus}{mode} threads={args.threads} "
             f"iterations={args.train_iterations}: "
             f"{result['env_steps_per_s']:7.1f} env steps/s ({result['env_steps_per_cpu_s']:6.1f} per CPU-s, "
-            f"{result['seconds']:.0f} s, {result['busy']:.0%} of the CPUs busy)",
+            f"{result['seconds']:.0f} s, {result['busy']:.0%} of the CPUs busy; 25M env steps at this rate: "
+            f"{PAPER_ENV_STEPS / result['env_steps_per_s'] / 3600:.1f} h)",
             flush=True,
         )
         if engine_s is not None:

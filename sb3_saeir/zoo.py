@@ -63,7 +63,7 @@ Pitfalls (rl-zoo3 2.9.2):
   ``l`` game steps (``l * n_agents`` agent-steps); ``t``; and the task's episode metrics, e.g. ``coverage_rate``).
   It is the same statistic as the training log's ``rollout/ep_rew_mean``. It is written only with ``--vec-env dummy``
   (the default): with ``subproc`` the monitor location is out of reach (a warning says so). ``--vec-env subproc``
-  brings nothing anyway (the game envs are only constructed); for SuperSuit worker processes use
+  brings nothing anyway (the game envs are only constructed); for env worker processes use
   ``vec_env_wrapper: [{sb3_saeir.zoo.games_to_agents: {num_cpus: 2}}]``.
 - ``enjoy``: ``rl_zoo3.enjoy`` imports ``requests`` (an undeclared dependency: ``pip install requests``). With
   ``--n-envs 1`` it crashes (``ValueError: The truth value of an array ... is ambiguous``) because it assumes one slot
@@ -283,7 +283,7 @@ def _monitor_files(venv: VecEnv) -> list[str]:
             "rl_zoo3.enjoy with --n-envs > 1), where the location of its monitor files cannot be read: if it logs "
             "this env (training env; enjoy --reward-log), no games.monitor.csv is written. The game envs are only "
             "constructed, never stepped: use --vec-env dummy (or the sb3_saeir.zoo launcher for enjoy) and "
-            "games_to_agents' num_cpus for SuperSuit worker processes.",
+            "games_to_agents' num_cpus for env worker processes.",
             stacklevel=3,
         )
     return []
@@ -315,7 +315,7 @@ def games_to_agents(venv: VecEnv, num_cpus: int = 0, mark_truncation: bool = Fal
         vec_env_wrapper: [{sb3_saeir.zoo.games_to_agents: {num_cpus: 2, mark_truncation: true}}]
 
     :param venv: rl-zoo3's vec env over :class:`SAEIRGameEnv` games (``DummyVecEnv`` or ``SubprocVecEnv``)
-    :param num_cpus: SuperSuit worker processes (0: all games in this process)
+    :param num_cpus: env worker processes (the game worker pool; 0: all games in this process)
     :param mark_truncation: see :func:`~sb3_saeir.make_multiagent_vec_env`
     :return: the multi-agent vec env (``n_games * n_agents`` slots) in a :class:`GameMonitor`
     """

@@ -133,10 +133,10 @@ def test_interrupted_run_resumes_from_checkpoint(tmp_path, monkeypatch):
 def test_failing_run_does_not_stop_the_others(tmp_path, monkeypatch):
     real = execution.execute_run
 
-    def flaky(spec, folder):
+    def flaky(spec, folder, num_threads=1):
         if spec.seed == 2:
             raise ValueError("boom")
-        return real(spec, folder)
+        return real(spec, folder, num_threads)
 
     monkeypatch.setattr(execution, "execute_run", flaky)
     argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1-2", *TINY_ARGV, "--out", str(tmp_path)]

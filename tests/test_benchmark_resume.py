@@ -243,7 +243,7 @@ def test_native_env_resume_state_gives_the_same_streams():
 
 
 def test_ctrl_c_ends_with_one_line(tmp_path, monkeypatch, capsys):
-    def interrupted(spec, folder):
+    def interrupted(spec, folder, num_threads=1):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(execution, "execute_run", interrupted)
@@ -252,7 +252,7 @@ def test_ctrl_c_ends_with_one_line(tmp_path, monkeypatch, capsys):
 
 
 def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
-    def slow(spec, folder):  # workers are forked: they run this
+    def slow(spec, folder, num_threads=1):  # workers are forked: they run this
         time.sleep(60)
 
     monkeypatch.setattr(execution, "execute_run", slow)

@@ -8,7 +8,7 @@ import torch as th
 import yaml
 from stable_baselines3.common.monitor import load_results
 
-from sb3_saeir import SAEIR_PPO
+from sb3_saeir import MAPPO, SAEIR_PPO
 from sb3_saeir.enjoy import main as enjoy_main
 from sb3_saeir.train import main as train_main
 
@@ -114,3 +114,15 @@ def test_the_configs_tensorboard_log_is_used_without_tb(tmp_path):
     assert train_main(argv) == 0
     assert list(tensorboard.glob("MAPPO_1/events.out.tfevents.*"))
     assert (tmp_path / "logs" / "mappo" / "cn-sparse-n3_1" / "progress.csv").is_file()
+
+
+@pytest.mark.parametrize("flag, expected", [("off", False), ("on", True), ("auto", "auto")])
+def test_double_buffered_flag_reaches_the_model_and_args(tmp_path, flag, expected):
+    """``--double-buffered`` overrides the config's ``double_buffered`` (here with the games in 2 env workers) and is
+    saved with the run's settings."""
+    argv = ["--algo", "mappo", *TINY_ARGV, "-f", str(tmp_path / "logs"), "-n", "60", "--eval-freq", "0"]
+    argv += ["--num-cpus", "2", "--double-buffered", flag]
+    assert train_main(argv) == 0
+    run = tmp_path / "logs" / "mappo" / "cn-sparse-n3_1"
+    assert MAPPO.load(run / "cn-sparse-n3.zip").double_buffered == expected
+    assert yaml.safe_load((run / "cn-sparse-n3" / "config.yml").read_text())["double_buffered"] == expected

@@ -127,24 +127,6 @@ class GameBlock:
         for agent_index, agent in enumerate(self.agents):
             rows[agent_index] = observations[agent]
 
-    def first_done(self, workers: Sequence[int]) -> int:
-        """Block until one of ``workers`` (with work in flight) has answered; return the first in ``workers`` order
-        that has."""
-        pipes = [self.pipes[worker] for worker in workers]
-        ready = set(mp_connection.wait(pipes))
-        return next(worker for worker, pipe in zip(workers, pipes) if pipe in ready)
-
-    def _death_report(self, worker: int) -> tuple[str, str]:
-        """Message and hint for a worker that ended without answering."""
-        process = self.processes[worker]
-        process.join(timeout=1.0)
-        return (
-            f"the worker process ended without answering (exit code {process.exitcode})",
-            "Workers start with multiprocessing's forkserver or spawn method, which imports the main module again: a "
-            'script that creates the env at import time needs its code under `if __name__ == "__main__":`. '
-            "Otherwise the worker was killed (out of memory?) or crashed inside the game's native code.",
-        )
-
     def reset(self, seeds: Sequence[int | None], options: dict | None) -> list[dict]:
         """Reset every game (game ``i`` with ``seeds[i]``); write the observations; return the slots' infos."""
         infos: list[dict] = []
@@ -266,7 +248,7 @@ class GameWorkerPool:
         for games, slot_range in zip(self.games_of_worker, self.slots_of_worker):
             make_games = cloudpickle.dumps(_GameFactory(env_fn, len(games)))
             parent_end, child_end = ctx.Pipe()
-            process = ctx.Process(
+            process = ctx.Process(  # type: ignore[attr-defined]
                 target=worker_main,
                 args=(make_games, slot_range.start, self.slots, child_end, parent_end),
                 daemon=True,

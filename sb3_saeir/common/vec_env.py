@@ -529,7 +529,7 @@ class MultiAgentVecEnv(VecEnv):
                     1,
                     [names[slot % self.n_agents]],
                     steps[[game]],
-                    first_game + game,
+                    first_game + int(game),
                 )
 
     def _init_episode_records(self) -> None:

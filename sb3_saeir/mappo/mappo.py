@@ -673,6 +673,7 @@ class MAPPO(OnPolicyAlgorithm):
         if not collected:
             return False
         new_obs, dones = self._last_obs, self._last_episode_starts
+        assert new_obs is not None and dones is not None
         with th.no_grad():
             last_starts = th.as_tensor(dones, dtype=th.float32, device=self.device)
             last_values = self.policy.predict_values(obs_as_tensor(new_obs, self.device), self._last_states, last_starts)  # type: ignore[arg-type]
@@ -780,7 +781,7 @@ class MAPPO(OnPolicyAlgorithm):
         for group, slots in enumerate(groups):
             states = slice_states(self._last_states, slots, n_agents)
             rows = slice(slots.start, slots.stop)
-            act_and_send(group, last_obs[rows], self._last_episode_starts[rows], states)
+            act_and_send(group, last_obs[rows], self._last_episode_starts[rows], states)  # type: ignore[index]
         n_steps = 0
         try:
             while n_steps < n_rollout_steps:
@@ -799,7 +800,7 @@ class MAPPO(OnPolicyAlgorithm):
                     return False
                 self._update_info_buffer(infos, dones)
                 n_steps += 1
-                self._store_step(rollout_buffer, step, rewards, dones, infos, new_obs)
+                self._store_step(rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
         except BaseException:
             base.drain_groups()
             self._last_obs = None

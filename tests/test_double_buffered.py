@@ -1,5 +1,10 @@
 """Double-buffered sampling (``double_buffered``): the data it collects, determinism, the option's checks, stopping."""
 
+import os
+import signal
+import threading
+import time
+
 import numpy as np
 import pytest
 import torch as th
@@ -7,8 +12,9 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.common.game_workers import GameWorkerError
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
-from tests.toy_envs import JitteryMeetEnv, ToyMeetEnv
+from tests.toy_envs import FailingMeetEnv, JitteryMeetEnv, SlowMeetEnv, ToyMeetEnv
 
 BUFFER_FIELDS = ("observations", "actions", "rewards", "episode_starts", "values", "log_probs", "returns", "advantages")
 
@@ -129,3 +135,39 @@ def test_option_saved_and_models_saved_without_it_load_with_the_default(tmp_path
     loaded = MAPPO.load(tmp_path / "old", env=toy_env)
     assert loaded.double_buffered == "auto"
     loaded.learn(36)
+
+
+def test_worker_error_in_a_double_buffered_rollout_is_raised_and_ends_the_workers():
+    env = make_multiagent_vec_env(FailingMeetEnv, n_games=4, seed=0, num_cpus=2)
+    processes = list(env.venv.pool.processes)
+    model = MAPPO("MAPPOPolicy", env, n_steps=10, double_buffered=True, policy_kwargs=dict(hidden_size=8))
+    with pytest.raises(GameWorkerError, match="ValueError: the toy game broke at step 3"):
+        model.learn(10 * env.num_envs)
+    assert not any(process.is_alive() for process in processes)
+    env.close()
+
+
+def test_ctrl_c_in_a_double_buffered_rollout_leaves_the_workers_to_close():
+    """SIGINT to the whole process group during a rollout: learn raises KeyboardInterrupt after waiting for the steps
+    in flight; the workers (which ignore SIGINT) end cleanly when the env is closed."""
+    env = make_multiagent_vec_env(SlowMeetEnv, n_games=4, seed=0, num_cpus=2)
+    processes = list(env.venv.pool.processes)
+    model = MAPPO("MAPPOPolicy", env, n_steps=10, double_buffered=True, policy_kwargs=dict(hidden_size=8))
+
+    def ctrl_c():
+        time.sleep(0.3)
+        for process in processes:
+            os.kill(process.pid, signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Thread(target=ctrl_c).start()
+        with pytest.raises(KeyboardInterrupt):
+            model.learn(100 * env.num_envs)
+    finally:
+        signal.signal(signal.SIGINT, previous_handler)
+    assert all(process.is_alive() for process in processes) and not env.venv.pool.busy
+    assert model._last_obs is None
+    env.close()
+    assert [process.exitcode for process in processes] == [0, 0]

@@ -11,7 +11,7 @@ import pytest
 
 from sb3_saeir import make_multiagent_vec_env
 from sb3_saeir.common.game_workers import GameWorkerError, split_games
-from tests.toy_envs import DyingMeetEnv, FailingMeetEnv, JitteryMeetEnv, ToyMeetEnv
+from tests.toy_envs import DyingMeetEnv, FailingMeetEnv, JitteryMeetEnv, SlowMeetEnv, ToyMeetEnv
 
 
 def comparable(info):
@@ -155,11 +155,6 @@ def test_ctrl_c_interrupts_the_parent_and_leaves_workers_to_close():
     """SIGINT (what Ctrl-C sends to the whole process group) while waiting for a step: the parent gets
     KeyboardInterrupt, the workers ignore it and end cleanly when the env is closed."""
 
-    class SlowMeetEnv(ToyMeetEnv):
-        def step(self, actions):
-            time.sleep(0.5)
-            return super().step(actions)
-
     env = make_multiagent_vec_env(SlowMeetEnv, n_games=2, seed=0, num_cpus=2)
     env.reset()
     processes = list(env.venv.pool.processes)
@@ -170,9 +165,15 @@ def test_ctrl_c_interrupts_the_parent_and_leaves_workers_to_close():
             os.kill(process.pid, signal.SIGINT)
         os.kill(os.getpid(), signal.SIGINT)
 
-    threading.Thread(target=ctrl_c).start()
-    with pytest.raises(KeyboardInterrupt):
-        env.step(np.zeros(6, dtype=np.int64))
+    # a terminal's Ctrl-C raises KeyboardInterrupt (pytest-xdist workers ignore SIGINT: restore Python's handler)
+    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Thread(target=ctrl_c).start()
+        with pytest.raises(KeyboardInterrupt):
+            for _ in range(100):  # 5 s of steps; interrupted after 0.1 s
+                env.step(np.zeros(6, dtype=np.int64))
+    finally:
+        signal.signal(signal.SIGINT, previous_handler)
     assert all(process.is_alive() for process in processes)
     env.close()
     assert [process.exitcode for process in processes] == [0, 0]

@@ -136,3 +136,11 @@ class DyingMeetEnv(ToyMeetEnv):
         if self._t == 1:
             os._exit(3)
         return super().step(actions)
+
+
+class SlowMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` whose steps take 50 ms (time to interrupt a rollout)."""
+
+    def step(self, actions):
+        time.sleep(0.05)
+        return super().step(actions)

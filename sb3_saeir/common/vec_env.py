@@ -483,12 +483,13 @@ class MultiAgentVecEnv(VecEnv):
         """Wait for the groups' steps in flight and drop the staged ones: the games are then out of step with each
         other and with the records, so :meth:`reset` must follow (it calls this itself)."""
         self._staged = {}
-        if self._in_flight:
-            if self._in_process:
-                self.venv.step_wait()
-            else:
-                self.venv.step_wait(sorted(self._in_flight))
-        self._in_flight = set()
+        in_flight, self._in_flight = sorted(self._in_flight), set()
+        if not in_flight:
+            return
+        if self._in_process:
+            self.venv.step_wait()
+        elif not self.venv.pool.closed:  # a failed worker closes the pool: nothing left to wait for
+            self.venv.step_wait(in_flight)
 
     def step_wait(self) -> VecEnvStepReturn:
         if self._staged:

@@ -1,6 +1,9 @@
 """Shared fixtures: the tiny navigation env most tests train on, tiny algorithm budgets, a toy cooperative game."""
 
 import os
+import signal
+import threading
+import time
 
 import pytest
 import torch
@@ -48,3 +51,23 @@ def load_benchmark_script():
         return module
 
     return load
+
+
+@pytest.fixture
+def ctrl_c():
+    """``ctrl_c(processes, delay)``: after ``delay`` seconds, send SIGINT to ``processes`` and to this process, as a
+    terminal's Ctrl-C does to its process group. Python's SIGINT handler is restored for the test (pytest-xdist workers
+    ignore SIGINT) and put back afterwards."""
+    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    def send(processes, delay):
+        def interrupt():
+            time.sleep(delay)
+            for process in processes:
+                os.kill(process.pid, signal.SIGINT)
+            os.kill(os.getpid(), signal.SIGINT)
+
+        threading.Thread(target=interrupt).start()
+
+    yield send
+    signal.signal(signal.SIGINT, previous_handler)

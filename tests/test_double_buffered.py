@@ -1,10 +1,5 @@
 """Double-buffered sampling (``double_buffered``): the data it collects, determinism, the option's checks, stopping."""
 
-import os
-import signal
-import threading
-import time
-
 import numpy as np
 import pytest
 import torch as th
@@ -147,26 +142,15 @@ def test_worker_error_in_a_double_buffered_rollout_is_raised_and_ends_the_worker
     env.close()
 
 
-def test_ctrl_c_in_a_double_buffered_rollout_leaves_the_workers_to_close():
+def test_ctrl_c_in_a_double_buffered_rollout_leaves_the_workers_to_close(ctrl_c):
     """SIGINT to the whole process group during a rollout: learn raises KeyboardInterrupt after waiting for the steps
     in flight; the workers (which ignore SIGINT) end cleanly when the env is closed."""
     env = make_multiagent_vec_env(SlowMeetEnv, n_games=4, seed=0, num_cpus=2)
     processes = list(env.venv.pool.processes)
     model = MAPPO("MAPPOPolicy", env, n_steps=10, double_buffered=True, policy_kwargs=dict(hidden_size=8))
-
-    def ctrl_c():
-        time.sleep(0.3)
-        for process in processes:
-            os.kill(process.pid, signal.SIGINT)
-        os.kill(os.getpid(), signal.SIGINT)
-
-    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        threading.Thread(target=ctrl_c).start()
-        with pytest.raises(KeyboardInterrupt):
-            model.learn(100 * env.num_envs)
-    finally:
-        signal.signal(signal.SIGINT, previous_handler)
+    ctrl_c(processes, 0.3)
+    with pytest.raises(KeyboardInterrupt):
+        model.learn(100 * env.num_envs)
     assert all(process.is_alive() for process in processes) and not env.venv.pool.busy
     assert model._last_obs is None
     env.close()

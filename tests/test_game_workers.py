@@ -1,11 +1,6 @@
 """The game worker pool (``num_cpus >= 2``): the same streams as the in-process path, groups stepping on their own,
 errors and deaths of workers, closing and Ctrl-C."""
 
-import os
-import signal
-import threading
-import time
-
 import numpy as np
 import pytest
 
@@ -151,29 +146,16 @@ def test_close_ends_workers_also_with_a_step_in_flight():
     env.close()  # twice is fine
 
 
-def test_ctrl_c_interrupts_the_parent_and_leaves_workers_to_close():
+def test_ctrl_c_interrupts_the_parent_and_leaves_workers_to_close(ctrl_c):
     """SIGINT (what Ctrl-C sends to the whole process group) while waiting for a step: the parent gets
     KeyboardInterrupt, the workers ignore it and end cleanly when the env is closed."""
-
     env = make_multiagent_vec_env(SlowMeetEnv, n_games=2, seed=0, num_cpus=2)
     env.reset()
     processes = list(env.venv.pool.processes)
-
-    def ctrl_c():
-        time.sleep(0.1)
-        for process in processes:
-            os.kill(process.pid, signal.SIGINT)
-        os.kill(os.getpid(), signal.SIGINT)
-
-    # a terminal's Ctrl-C raises KeyboardInterrupt (pytest-xdist workers ignore SIGINT: restore Python's handler)
-    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        threading.Thread(target=ctrl_c).start()
-        with pytest.raises(KeyboardInterrupt):
-            for _ in range(100):  # 5 s of steps; interrupted after 0.1 s
-                env.step(np.zeros(6, dtype=np.int64))
-    finally:
-        signal.signal(signal.SIGINT, previous_handler)
+    ctrl_c(processes, 0.1)
+    with pytest.raises(KeyboardInterrupt):
+        for _ in range(100):  # 5 s of steps; interrupted after 0.1 s
+            env.step(np.zeros(6, dtype=np.int64))
     assert all(process.is_alive() for process in processes)
     env.close()
     assert [process.exitcode for process in processes] == [0, 0]

@@ -408,27 +408,12 @@ class GameWorkerVecEnv:
     """The gymnasium-style vector env of SuperSuit's ``concat_vec_envs_v1`` over a :class:`GameWorkerPool`: what
     :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` steps when its games run in worker processes.
 
-    :param env_fn: callable returning one game, already wrapped
-    :param n_games: games in all
-    :param n_workers: worker processes
-    :param n_agents: agents per game
-    :param observation_space: one agent's observation space
-    :param action_space: one agent's action space
-    :param start_method: see :class:`GameWorkerPool`
+    :param pool: the worker pool (its games already wrapped)
     """
 
-    def __init__(
-        self,
-        env_fn: Callable[[], ParallelEnv],
-        n_games: int,
-        n_workers: int,
-        n_agents: int,
-        observation_space: spaces.Box,
-        action_space: spaces.Space,
-        start_method: str | None = None,
-    ) -> None:
-        self.pool = GameWorkerPool(env_fn, n_games, n_workers, n_agents, observation_space, action_space, start_method)
-        self.num_envs = n_games * n_agents
+    def __init__(self, pool: GameWorkerPool) -> None:
+        self.pool = pool
+        self.num_envs = pool.n_games * pool.n_agents
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
         """Reset game ``g`` with ``seed + g`` (or unseeded); return copies of the observations and the infos."""

@@ -30,7 +30,7 @@ from pettingzoo.utils.env import AECEnv, ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
-from sb3_saeir.common.game_workers import GameWorkerVecEnv
+from sb3_saeir.common.game_workers import GameWorkerPool, GameWorkerVecEnv
 from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
 from sb3_saeir.common.utils import check_bool
 
@@ -323,7 +323,7 @@ class MultiAgentVecEnv(VecEnv):
         if not hasattr(probe_env.unwrapped, "render_mode"):  # optional in PettingZoo, required by SuperSuit
             probe_env.unwrapped.render_mode = None
         if num_cpus >= 2:
-            self.venv: Any = GameWorkerVecEnv(
+            pool = GameWorkerPool(
                 _WrappedGameFactory(env_fn),
                 self.n_games,
                 min(num_cpus, self.n_games),
@@ -331,6 +331,7 @@ class MultiAgentVecEnv(VecEnv):
                 observation_space,
                 action_space,
             )
+            self.venv: Any = GameWorkerVecEnv(pool)
         else:
             markov_env = ss.pettingzoo_env_to_vec_env_v1(_NoAgentDeath(probe_env))
             self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=0, base_class="gymnasium")

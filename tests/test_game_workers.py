@@ -124,6 +124,8 @@ def test_worker_error_names_worker_games_and_error():
     with pytest.raises(GameWorkerError, match=r"Game worker 0 \(games 0-1\) failed: ValueError: the toy game broke"):
         env.step(np.zeros(12, dtype=np.int64))
     assert not any(process.is_alive() for process in processes)  # the pool closed itself
+    with pytest.raises(GameWorkerError, match="closed"):
+        env.step(np.zeros(12, dtype=np.int64))
     env.close()
 
 

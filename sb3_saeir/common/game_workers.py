@@ -274,6 +274,10 @@ class GameWorkerPool:
         return set(self._waiting)
 
     def _send(self, workers: Sequence[int], message: tuple[str, Any]) -> None:
+        if self.closed:
+            raise GameWorkerError(
+                "The game workers are closed (by close() or after a worker's error): create a new env to go on."
+            )
         for worker in workers:
             if worker in self._waiting:
                 raise RuntimeError(f"worker {worker} is still stepping: call step_wait before sending it more work.")

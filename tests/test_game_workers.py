@@ -115,26 +115,26 @@ def test_lockstep_step_refused_while_groups_step():
     env.close()
 
 
-def test_worker_error_names_worker_games_and_error():
-    env = make_multiagent_vec_env(FailingMeetEnv, n_games=4, seed=0, num_cpus=2)
+@pytest.mark.parametrize(
+    "game, n_games, good_steps, message",
+    [
+        (FailingMeetEnv, 4, 2, r"Game worker 0 \(games 0-1\) failed: ValueError: the toy game broke"),
+        (DyingMeetEnv, 2, 1, r"Game worker 0 \(games 0-0\) failed: the worker process ended without answering"),
+    ],
+    ids=["error", "death"],
+)
+def test_worker_error_or_death_names_the_worker_and_closes_the_pool(game, n_games, good_steps, message):
+    env = make_multiagent_vec_env(game, n_games=n_games, seed=0, num_cpus=2)
     env.reset()
     processes = list(env.venv.pool.processes)
-    env.step(np.zeros(12, dtype=np.int64))
-    env.step(np.zeros(12, dtype=np.int64))
-    with pytest.raises(GameWorkerError, match=r"Game worker 0 \(games 0-1\) failed: ValueError: the toy game broke"):
-        env.step(np.zeros(12, dtype=np.int64))
+    actions = np.zeros(env.num_envs, dtype=np.int64)
+    for _ in range(good_steps):
+        env.step(actions)
+    with pytest.raises(GameWorkerError, match=message):
+        env.step(actions)
     assert not any(process.is_alive() for process in processes)  # the pool closed itself
     with pytest.raises(GameWorkerError, match="closed"):
-        env.step(np.zeros(12, dtype=np.int64))
-    env.close()
-
-
-def test_worker_death_reported():
-    env = make_multiagent_vec_env(DyingMeetEnv, n_games=2, seed=0, num_cpus=2)
-    env.reset()
-    env.step(np.zeros(6, dtype=np.int64))
-    with pytest.raises(GameWorkerError, match="ended without answering"):
-        env.step(np.zeros(6, dtype=np.int64))
+        env.step(actions)
     env.close()
 
 

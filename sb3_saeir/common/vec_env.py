@@ -135,8 +135,16 @@ class _NoAgentDeath(BaseParallelWrapper):
                 )
 
 
+def _as_vectorized(game: ParallelEnv) -> _NoAgentDeath:
+    """One game as the vec env steps it: with a ``render_mode`` (optional in PettingZoo, required by SuperSuit) and
+    wrapped in :class:`_NoAgentDeath`."""
+    if not hasattr(game.unwrapped, "render_mode"):
+        game.unwrapped.render_mode = None
+    return _NoAgentDeath(game)
+
+
 class _WrappedGameFactory:
-    """Picklable factory of one game as the vec env steps it: ``_NoAgentDeath(env_fn())`` with a ``render_mode``.
+    """Picklable factory of one game as the vec env steps it, ``_as_vectorized(env_fn())`` (for the worker processes).
 
     :param env_fn: callable returning one PettingZoo ``ParallelEnv``
     """
@@ -145,10 +153,7 @@ class _WrappedGameFactory:
         self.env_fn = env_fn
 
     def __call__(self) -> ParallelEnv:
-        game = self.env_fn()
-        if not hasattr(game.unwrapped, "render_mode"):  # optional in PettingZoo, expected by the wrappers
-            game.unwrapped.render_mode = None
-        return _NoAgentDeath(game)
+        return _as_vectorized(self.env_fn())
 
 
 # Rewards of this magnitude or more get a warning: the value loss squares value errors of this size in float32, whose
@@ -320,8 +325,6 @@ class MultiAgentVecEnv(VecEnv):
         observation_space = probe_env.observation_space(self.possible_agents[0])
         action_space = probe_env.action_space(self.possible_agents[0])
 
-        if not hasattr(probe_env.unwrapped, "render_mode"):  # optional in PettingZoo, required by SuperSuit
-            probe_env.unwrapped.render_mode = None
         if num_cpus >= 2:
             pool = GameWorkerPool(
                 _WrappedGameFactory(env_fn),
@@ -333,9 +336,14 @@ class MultiAgentVecEnv(VecEnv):
             )
             self.venv: Any = GameWorkerVecEnv(pool)
         else:
-            markov_env = ss.pettingzoo_env_to_vec_env_v1(_NoAgentDeath(probe_env))
+            markov_env = ss.pettingzoo_env_to_vec_env_v1(_as_vectorized(probe_env))
             self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=0, base_class="gymnasium")
         self._in_process = not isinstance(self.venv, GameWorkerVecEnv)
+        # Slot ranges of the groups of games that step on their own (double-buffered sampling): one per worker
+        # process; one group of all slots when the games run in this process.
+        self.sampling_groups: list[range] = (
+            [range(self.n_games * self.n_agents)] if self._in_process else list(self.venv.pool.slots_of_worker)
+        )
         super().__init__(self.n_games * self.n_agents, observation_space, action_space)
         self.metadata = dict(getattr(probe_env, "metadata", {}) or {})
         self._game_seed: int | None = None
@@ -411,14 +419,6 @@ class MultiAgentVecEnv(VecEnv):
         self.venv.step_async(actions)
 
     # ------------------------------------------------------------------ double-buffered sampling
-    @property
-    def sampling_groups(self) -> list[range]:
-        """Slot ranges of the groups of games that step on their own (double-buffered sampling): one per worker
-        process; one group of all slots when the games run in this process."""
-        if self._in_process:
-            return [range(self.num_envs)]
-        return list(self.venv.pool.slots_of_worker)
-
     def step_group_async(self, group: int, actions: np.ndarray) -> None:
         """Start a step of the games of one of :attr:`sampling_groups`.
 
@@ -519,8 +519,8 @@ class MultiAgentVecEnv(VecEnv):
         games ``first_game ..`` (``steps``: the step of each game's episode)."""
         names = self.possible_agents
         check_finite(self._env_name(), obs, rewards, self.n_agents, names, steps, first_game)
-        terminations = [bool(info.get("terminal_observation") is not None) for info in infos]
-        for slot in np.flatnonzero(terminations):
+        with_terminal_observation = [info.get("terminal_observation") is not None for info in infos]
+        for slot in np.flatnonzero(with_terminal_observation):
             terminal = infos[slot]["terminal_observation"]
             if not np.isfinite(np.asarray(terminal, dtype=np.float64)).all():
                 game = slot // self.n_agents

@@ -339,8 +339,8 @@ class MultiAgentVecEnv(VecEnv):
             markov_env = ss.pettingzoo_env_to_vec_env_v1(_as_vectorized(probe_env))
             self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=0, base_class="gymnasium")
         self._in_process = not isinstance(self.venv, GameWorkerVecEnv)
-        # Slot ranges of the groups of games that step on their own (double-buffered sampling): one per worker
-        # process; one group of all slots when the games run in this process.
+        #: Slot ranges of the groups of games that step on their own (double-buffered sampling): one per worker
+        #: process; one group of all slots when the games run in this process.
         self.sampling_groups: list[range] = (
             [range(self.n_games * self.n_agents)] if self._in_process else list(self.venv.pool.slots_of_worker)
         )

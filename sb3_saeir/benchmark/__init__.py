@@ -38,11 +38,12 @@ episode starts and GRU states, its episode-info buffers, the training env's stat
 optimisers, running statistics) and the logger's values not yet written. It is written to a temporary file and moved
 into place with ``os.replace``, so a kill during a save leaves the previous checkpoint whole. A run killed at any
 moment (even SIGKILL) and re-run ends with the same ``runs.csv`` rows as an uninterrupted run of the same seed.
-Envs without ``get_resume_state`` (SuperSuit-backed tasks) resume approximately: the training env restarts from a
-reset, and ``resume.log`` says so. On resume ``progress.csv`` keeps its rows up to the checkpoint and goes on;
-evaluations made after the checkpoint are re-done (``resume.log`` says whether each came out identical); ``wall_s``
-in ``done.json`` sums the segments (each counted up to its last checkpoint or evaluation). Ctrl-C stops every job
-and prints "interrupted: re-run the same command to resume" (exit status 130).
+Envs without ``get_resume_state`` (the games stepped through ``MultiAgentVecEnv``: football, mpe2's world) resume
+approximately: the training env restarts from a reset, and ``resume.log`` says so. On resume ``progress.csv`` keeps
+its rows up to the checkpoint and goes on; evaluations made after the checkpoint are re-done (``resume.log`` says
+whether each came out identical); ``wall_s`` in ``done.json`` sums the segments (each counted up to its last
+checkpoint or evaluation). Ctrl-C stops every job and prints "interrupted: re-run the same command to resume"
+(exit status 130).
 
 A failing run is reported in ``failures.txt`` and does not stop the others. ``--ray-address`` runs them on a Ray
 cluster instead of local processes (results gathered into the same folder; resuming from checkpoints needs a shared

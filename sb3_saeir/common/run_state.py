@@ -250,8 +250,9 @@ def describe_resume(model: Any, state: dict[str, Any] | None) -> list[str]:
         return ["the checkpoint has no resume state (a plain model or an older version): resuming approximately"]
     if not is_exact(model, state):
         return [
-            f"the training env ({state['env_type']}) cannot save its state (no get_resume_state; SuperSuit-backed "
-            "envs): resuming approximately, the training env restarts from a reset"
+            f"the training env ({state['env_type']}) cannot save its state (no get_resume_state: games stepped "
+            "through MultiAgentVecEnv, in-process or in env workers): resuming approximately, the training env "
+            "restarts from a reset"
         ]
     return []
 

@@ -40,6 +40,40 @@ def test_mappo_defaults():
     env.close()
 
 
+def reference_adam(param, grads, lr, eps, betas=(0.9, 0.999)):
+    """Adam (Kingma & Ba, 2015, Algorithm 1) as a plain loop over steps, float64."""
+    p, m, v = param.double().clone(), th.zeros_like(param, dtype=th.float64), th.zeros_like(param, dtype=th.float64)
+    for step, grad in enumerate(grads, start=1):
+        m = betas[0] * m + (1 - betas[0]) * grad.double()
+        v = betas[1] * v + (1 - betas[1]) * grad.double() ** 2
+        m_hat, v_hat = m / (1 - betas[0] ** step), v / (1 - betas[1] ** step)
+        p = p - lr * m_hat / (v_hat.sqrt() + eps)
+    return p
+
+
+def test_default_optimizer_is_fused_adam_and_steps_as_adam(env):
+    model = MAPPO("MlpPolicy", env, seed=0, learning_rate=5e-4)
+    optimizer = model.policy.optimizer
+    assert type(optimizer) is th.optim.Adam
+    assert optimizer.defaults["fused"] is True and optimizer.defaults["eps"] == 1e-5
+    params = [p for p in model.policy.parameters() if p.requires_grad]
+    before = [p.detach().clone() for p in params]
+    generator = th.Generator().manual_seed(0)
+    grads = [[th.randn(p.shape, generator=generator) for p in params] for _ in range(3)]
+    for step_grads in grads:
+        for param, grad in zip(params, step_grads):
+            param.grad = grad.clone()
+        optimizer.step()
+    for index, (param, start) in enumerate(zip(params, before)):
+        expected = reference_adam(start, [step_grads[index] for step_grads in grads], lr=5e-4, eps=1e-5)
+        np.testing.assert_allclose(param.detach().double().numpy(), expected.numpy(), atol=1e-6, rtol=0)
+    # the user's optimizer_kwargs replace the default; another optimizer class gets foreach instead of fused
+    custom = MAPPO("MlpPolicy", env, policy_kwargs=dict(optimizer_kwargs={"eps": 1e-8}))
+    assert custom.policy.optimizer.defaults["eps"] == 1e-8 and custom.policy.optimizer.defaults["fused"] is None
+    rmsprop = MAPPO("MlpPolicy", env, policy_kwargs=dict(optimizer_class=th.optim.RMSprop))
+    assert rmsprop.policy.optimizer.defaults["foreach"] is True and rmsprop.policy.optimizer.defaults["eps"] == 1e-5
+
+
 def test_joint_critic_sees_the_concatenation_and_gives_one_value_per_game():
     critic = RecurrentValueCritic(obs_dim=4, n_agents=3, critic_input="joint", hidden_size=8)
     obs = th.randn(5, 2, 3, 4)  # (T, G, N, d)

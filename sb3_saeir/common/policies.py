@@ -91,6 +91,19 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
         raise ValueError(f"{policy_name}: policy argument {key}={value!r} is not supported: {hint}.")
 
 
+def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[str, Any]:
+    """The policies' optimizer kwargs when none are given: MAPPO's ``eps=1e-5``, and PyTorch's fused kernel for Adam
+    and AdamW (one pass over every parameter instead of several ops per tensor; the same update up to float rounding,
+    ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes.
+
+    :param optimizer_class: the policy's optimizer class
+    :return: the keyword arguments the optimizer is built with
+    """
+    if optimizer_class in (th.optim.Adam, th.optim.AdamW):
+        return {"eps": 1e-5, "fused": True}
+    return {"eps": 1e-5, "foreach": True}
+
+
 class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     """Base class: recurrent parameter-shared actor, one or more critics over a game's agents, ValueNorm per critic.
 
@@ -113,7 +126,9 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     :param log_std_init: initial log standard deviation of the Gaussian action head (continuous actions)
     :param ortho_init: orthogonal initialisation; only ``True`` (the paper's) is supported, ``False`` raises
     :param optimizer_class: optimizer class
-    :param optimizer_kwargs: optimizer kwargs (default ``eps=1e-5``, as MAPPO)
+    :param optimizer_kwargs: optimizer kwargs (default ``eps=1e-5``, as MAPPO, and PyTorch's fused kernel for Adam
+        and AdamW, ``fused=True``: one pass over all parameters instead of several ops per tensor; other optimizer
+        classes get ``foreach=True``)
     :param sb3_kwargs: SB3 ``ActorCriticPolicy`` arguments, accepted only with their default value (SB3 passes them
         when it rebuilds a saved policy); ``net_arch``, ``features_extractor_class``, ``use_sde`` or
         ``share_features_extractor=False`` raise a ``ValueError`` naming what to use instead, as does any unknown key
@@ -159,7 +174,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         self.value_norm_beta = value_norm_beta
         self.critic_gumbel_noise = critic_gumbel_noise
         if optimizer_kwargs is None:
-            optimizer_kwargs = {"eps": 1e-5, "foreach": True}
+            optimizer_kwargs = default_optimizer_kwargs(optimizer_class)
         super().__init__(
             observation_space,
             action_space,

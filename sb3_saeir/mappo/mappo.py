@@ -847,6 +847,8 @@ class MAPPO(OnPolicyAlgorithm):
         advantage_weights: dict[str, list[float]] = {scale: [] for scale in scales}
         loss_value = 0.0
         continue_training = True
+        # each network's parameters, listed once (the gradient norms are clipped per network at every minibatch)
+        network_parameters = [self.policy.actor_parameters()] + [self.policy.critic_parameters(scale) for scale in scales]
         for epoch in range(self.n_epochs):
             for samples in self.rollout_buffer.get(self.n_minibatches, self.normalize_advantage):
                 # the networks run on the blocks grouped by valid length: no padded row is computed
@@ -882,9 +884,8 @@ class MAPPO(OnPolicyAlgorithm):
                     loss_value += self.vf_coef * value_losses[scale][-1]
 
                 # optimisation step; gradient norms clipped per network
-                th.nn.utils.clip_grad_norm_(self.policy.actor_parameters(), self.max_grad_norm)
-                for scale in scales:
-                    th.nn.utils.clip_grad_norm_(self.policy.critic_parameters(scale), self.max_grad_norm)
+                for parameters in network_parameters:
+                    th.nn.utils.clip_grad_norm_(parameters, self.max_grad_norm)
                 self.policy.optimizer.step()
             self._n_updates += 1
             if not continue_training:

@@ -93,8 +93,8 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
 
 def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[str, Any]:
     """The policies' optimizer kwargs when none are given: MAPPO's ``eps=1e-5``, and PyTorch's fused kernel for Adam
-    and AdamW (one pass over every parameter instead of several ops per tensor; the same update up to float rounding,
-    ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes.
+    and AdamW (one kernel over all parameter tensors instead of several multi-tensor ``_foreach_*`` ops; the same
+    update up to float rounding, ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes.
 
     :param optimizer_class: the policy's optimizer class
     :return: the keyword arguments the optimizer is built with
@@ -126,9 +126,8 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     :param log_std_init: initial log standard deviation of the Gaussian action head (continuous actions)
     :param ortho_init: orthogonal initialisation; only ``True`` (the paper's) is supported, ``False`` raises
     :param optimizer_class: optimizer class
-    :param optimizer_kwargs: optimizer kwargs (default ``eps=1e-5``, as MAPPO, and PyTorch's fused kernel for Adam
-        and AdamW, ``fused=True``: one pass over all parameters instead of several ops per tensor; other optimizer
-        classes get ``foreach=True``)
+    :param optimizer_kwargs: optimizer kwargs (default: :func:`default_optimizer_kwargs`, ``eps=1e-5`` as MAPPO with
+        ``fused=True`` for Adam and AdamW)
     :param sb3_kwargs: SB3 ``ActorCriticPolicy`` arguments, accepted only with their default value (SB3 passes them
         when it rebuilds a saved policy); ``net_arch``, ``features_extractor_class``, ``use_sde`` or
         ``share_features_extractor=False`` raise a ``ValueError`` naming what to use instead, as does any unknown key

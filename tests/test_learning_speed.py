@@ -1,0 +1,119 @@
+"""benchmarks/learning_speed.py: success at fixed env steps, first reaches, areas, the earlier test, bonus windows."""
+
+import csv
+import itertools
+import json
+import math
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def speed(load_benchmark_script):
+    return load_benchmark_script("learning_speed")
+
+
+def write_runs(path, algo, curves, task="grf-3v1-keeper"):
+    """A runs.csv with one evaluation row per (seed, env steps, success in [0, 1])."""
+    fields = ["algo", "task", "seed", "timesteps", "env_steps", "success_mean", "ep_rew_mean"]
+    with open(path, "w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=fields)
+        writer.writeheader()
+        for seed, points in curves.items():
+            for env_steps, success in points:
+                writer.writerow(
+                    dict(algo=algo, task=task, seed=seed, timesteps=3 * env_steps, env_steps=env_steps,
+                         success_mean=success, ep_rew_mean=success)
+                )  # fmt: skip
+
+
+def test_value_at_and_first_reach(speed):
+    curve = (np.array([0.0, 250.0, 500.0, 750.0]), np.array([0.0, 5.0, 12.0, 30.0]))
+    assert speed.value_at(curve, 500) == 12.0
+    assert speed.value_at(curve, 600) == 30.0  # the first evaluation at or after
+    assert speed.value_at(curve, 800) is None
+    assert speed.first_reach(curve, 10.0) == (500.0, True)
+    assert speed.first_reach(curve, 30.0) == (750.0, True)
+    assert speed.first_reach(curve, 50.0) == (750.0, False)  # censored at the last evaluation
+
+
+def test_area_is_the_mean_height_by_trapezoids(speed):
+    curve = (np.array([0.0, 1.0, 3.0, 4.0]), np.array([0.0, 10.0, 10.0, 40.0]))
+    # trapezoids up to 3: 0.5 * 10 + 2 * 10 = 25 over a span of 3
+    assert speed.area_under_curve(curve, 3.0) == pytest.approx(25.0 / 3.0)
+    # the whole curve: 25 + (10 + 40) / 2 = 50 over 4
+    assert speed.area_under_curve(curve, 4.0) == pytest.approx(12.5)
+    with pytest.raises(ValueError, match="two evaluations"):
+        speed.area_under_curve(curve, 0.5)
+
+
+def slow_earlier_p(first, second):
+    """The one-sided p by brute force: every assignment of the pooled times to labels, counted with its multiplicity."""
+    pooled = first + second
+    observed = sum((x < y) + 0.5 * (x == y) for x in first for y in second)
+    count = extreme = 0
+    for labels in itertools.permutations(range(len(pooled))):
+        a = [pooled[i] for i in labels[: len(first)]]
+        b = [pooled[i] for i in labels[len(first) :]]
+        count += 1
+        extreme += sum((x < y) + 0.5 * (x == y) for x in a for y in b) >= observed - 1e-12
+    return extreme / count
+
+
+@pytest.mark.parametrize(
+    "first, second, share",
+    [
+        ([1.0, 2.0, 3.0], [4.0, 5.0, 6.0], 1.0),  # all earlier: the smallest p with 3 and 3, 1/20
+        ([4.0, 5.0, 6.0], [1.0, 2.0, 3.0], 0.0),
+        ([1.0, 5.0, math.inf], [2.0, math.inf, math.inf], 6 / 9),  # censored seeds tie with each other
+        ([2.0, 2.0], [2.0, 3.0], 0.75),
+    ],
+)
+def test_earlier_test_against_brute_force(speed, first, second, share):
+    observed, p_value = speed.earlier_test(first, second)
+    assert observed == pytest.approx(share)
+    assert p_value == pytest.approx(slow_earlier_p(first, second))
+    if share == 1.0 and len(first) == 3:
+        assert p_value == pytest.approx(1 / 20)
+
+
+def test_report_end_to_end(speed, tmp_path, capsys):
+    write_runs(
+        tmp_path / "a.csv",
+        "saeir_ppo",
+        {s: [(0, 0.0), (500_000, 0.1 * s), (1_000_000, 0.3), (2_000_000, 0.4)] for s in (1, 2, 3)},
+    )
+    write_runs(tmp_path / "b.csv", "mappo", {s: [(0, 0.0), (500_000, 0.0), (1_000_000, 0.05 * s), (2_000_000, 0.15)]
+                                             for s in (1, 2, 3)})  # fmt: skip
+    assert speed.main([str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--out", str(tmp_path / "out")]) == 0
+    text = (tmp_path / "out" / "learning_speed.md").read_text()
+    assert (tmp_path / "out" / "curves_seeds.png").stat().st_size > 0
+    assert "| 0.5M | s1 10, s2 20, s3 30 | 20.0 |" in text  # per seed and the mean
+    assert "| 10 | s1 0.5M, s2 0.5M, s3 0.5M |" in text  # saeir_ppo's first reaches of 10%
+    assert "| 20 | s1 > 2M, s2 > 2M, s3 > 2M |" in text  # mappo never reaches 20%: censored
+    # saeir_ppo reaches 10% earlier on every seed pair: the smallest one-sided p with 3 against 3
+    assert "| saeir_ppo (n=3) | mappo (n=3) | first reach of 10 | | 100% | 0.050 (one-sided) |" in text
+
+
+def test_same_run_in_two_files_is_refused(speed, tmp_path):
+    for name in ("a.csv", "b.csv"):
+        write_runs(tmp_path / name, "mappo", {1: [(0, 0.0), (10, 0.1)]})
+    with pytest.raises(SystemExit, match="in both"):
+        speed.main([str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--out", str(tmp_path / "out")])
+
+
+def test_bonus_windows_average_per_window_in_env_steps(speed, tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "spec.json").write_text(json.dumps({"config": {"env_kwargs": {"N": 4}}}))
+    fields = ["time/total_timesteps", "rollout/intrinsic_fire_rate_team", "rollout/intrinsic_reward_mean_team"]
+    with open(run / "progress.csv", "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(fields)
+        # agent-steps 4, 8, 12, 16 are env steps 1, 2, 3, 4: windows of 2 env steps hold rollouts (1, 2) and (3, 4)
+        for agent_steps, fire in ((4, 0.1), (8, 0.3), (12, 0.5), (16, 0.7)):
+            writer.writerow([agent_steps, fire, 2 * fire])
+    lines = speed.bonus_windows(run, window=2.0)
+    assert lines[2].startswith("| 0M-2e-06M | 2.00e-01 | 4.00e-01 |")
+    assert lines[3].startswith("| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 |")

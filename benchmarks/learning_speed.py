@@ -10,9 +10,9 @@ under the success curve, the pairwise table and every seed's curve.
 Each argument is a benchmark's ``runs.csv`` (``python -m sb3_saeir.benchmark``); rows of the same (method, task,
 seed) given twice are refused. The figures are computed from the evaluation rows only, with the benchmark's own
 statistics (:func:`sb3_saeir.benchmark.mann_whitney`, the IQM with rliable's stratified bootstrap): see
-``docs/results.md``. Writes ``OUT/learning_speed.md`` and ``OUT/curves_seeds.png`` and prints the Markdown. With ``--bonus RUN_FOLDER ...``
-it adds, per SAEIR run, the bonus's fire rate and mean size per scale averaged over each ``--window`` env steps (from
-the run's ``progress.csv``).
+``docs/results.md``. Writes ``OUT/learning_speed.md`` and ``OUT/curves_seeds.png`` and prints the Markdown. With
+``--bonus RUN_FOLDER ...`` it adds, per SAEIR run, the bonus's fire rate and mean size per scale averaged over each
+``--window`` env steps (from the run's ``progress.csv``).
 
 Definitions (env steps are game steps, the x axis of the benchmark's curves):
 

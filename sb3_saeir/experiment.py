@@ -51,7 +51,7 @@ class Experiment:
     :param task: task id (e.g. ``"cn-sparse-n3"``)
     :param hyperparams: the config entry (default: the packaged ``zoo_configs/<algo>.yml`` entry of ``task``)
     :param seed: seed of the model and the training env (game ``g`` gets ``seed + g``)
-    :param log_folder: the run's folder (``None``: nothing written by :meth:`build`; see :func:`next_run_folder`)
+    :param log_folder: the run's folder (``None``: nothing written by :meth:`build`; see :func:`claimed_run_folder`)
     :param n_games: override the config's ``n_envs`` (number of games)
     :param num_cpus: env worker processes of the training env (0: every game in this process); overrides the config's
         ``num_cpus``
@@ -327,7 +327,8 @@ def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]
 
 
 def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
-    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering)."""
+    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering), not created: two
+    commands asking at once get the same one (:func:`claimed_run_folder` creates it exclusively)."""
     return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
 
 

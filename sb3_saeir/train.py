@@ -9,17 +9,21 @@ Writes rl-zoo's folder layout, ``<log-folder>/<algo>/<task>_<run>/``:
 
 - ``progress.csv`` (SB3's logger: every ``rollout/``, ``train/``, ``eval/`` and ``time/`` row).
 
-A new run number is used for every run, so nothing already saved is overwritten. ``--optimize`` tunes
-hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
+A new run number is used for every run, so nothing already saved is overwritten; the run folder is created
+exclusively, so runs started together get different numbers. Every file is replaced atomically
+(:mod:`sb3_saeir.common.atomic`). ``--optimize`` tunes hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
 
 **Resuming.** The checkpoints of ``--save-freq`` are resumable: each holds, besides the model, everything the rest of
 the run depends on (:mod:`sb3_saeir.common.run_state`). The same command with ``--resume`` continues the latest run
-of that algo and task (``--resume N``: run ``N``) from its last checkpoint, in its own folder, and ends as the run
-would have ended uninterrupted: same parameters, same ``progress.csv`` rows (but the ``time/`` columns), same
-evaluations. It refuses a command whose settings differ from the run's (``<task>/args.yml``, ``<task>/config.yml``),
-naming them. The first Ctrl-C finishes the rollout and update in progress, writes a checkpoint and stops (a second
-Ctrl-C stops at once); a killed run resumes from its last ``--save-freq`` checkpoint. ``-i`` keeps its meaning:
-continue a saved model with a fresh state (new run, new generators, fresh env).
+of that algo and task (``--resume N``: run ``N``; ``--resume FOLDER``: the run in that folder, e.g. one moved
+elsewhere) from its newest checkpoint that loads (those that do not are skipped, saying so), in its own folder, and
+ends as the run would have ended uninterrupted: same parameters, same ``progress.csv`` rows (but the ``time/``
+columns), same evaluations. It refuses a command whose settings differ from the run's (``<task>/args.yml``,
+``<task>/config.yml``), naming them. The first Ctrl-C finishes the rollout and update in progress, writes a
+checkpoint and stops (a second Ctrl-C stops at once); a killed run resumes from its last ``--save-freq`` checkpoint;
+a full disk stops it with one line naming the checkpoint to resume from. ``-i`` keeps its meaning: continue a saved
+model with a fresh state (new run, new generators, fresh env). See ``docs/guide/training.md``, "Stopping and
+resuming a run".
 """
 
 from __future__ import annotations

@@ -113,12 +113,14 @@ NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def resume_target(text: str) -> int | Path:
-    """argparse type of ``--resume``'s value: a run number (``3``, as rl-zoo's ``--exp-id``), or else the path of a
-    run folder (a run moved to another log folder: ``--resume /data/logs/mappo/cn-sparse-n3_3``)."""
+    """argparse type of ``--resume``'s value: a run number (``3``, as rl-zoo's ``--exp-id``; a number that is not
+    whole is refused), or else the path of a run folder (a run moved to another log folder:
+    ``--resume /data/logs/mappo/cn-sparse-n3_3``)."""
     try:
-        return count(text)
-    except argparse.ArgumentTypeError:
+        float(text)
+    except ValueError:
         return Path(text)
+    return count(text)
 
 
 def check_arguments(args: argparse.Namespace) -> None:

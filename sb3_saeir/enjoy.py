@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_saeir.common.atomic import atomic_path
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
@@ -82,7 +83,8 @@ def record_gif(
     if not frames:
         raise ValueError(f"Task {task!r} rendered no rgb_array frames: it cannot be recorded as a GIF.")
     # imageio >= 2.28 reads duration in milliseconds per frame; loop=0 loops forever
-    imageio.mimsave(path, frames, duration=1000.0 / fps, loop=0)
+    with atomic_path(path) as temp:  # an interrupted write leaves the GIF that was there
+        imageio.mimsave(temp, frames, duration=1000.0 / fps, loop=0)
     return len(frames)
 
 

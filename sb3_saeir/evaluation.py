@@ -11,6 +11,7 @@ from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback, EventCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_saeir.common.atomic import atomic_file, save_model
 from sb3_saeir.common.run_state import resumable_env
 from sb3_saeir.common.vec_env import is_multiagent_vec_env
 
@@ -219,7 +220,7 @@ class MultiAgentEvalCallback(EventCallback):
         if main_score > self.best_score:
             self.best_score = main_score
             if self.best_model_save_path is not None:
-                self.model.save(os.path.join(self.best_model_save_path, "best_model"))
+                save_model(self.model, os.path.join(self.best_model_save_path, "best_model"))
             if self.callback is not None:
                 return self.callback.on_step()
         return True
@@ -258,4 +259,5 @@ class MultiAgentEvalCallback(EventCallback):
         renamed = {"r": "results", "l": "ep_lengths"}
         for key, values in self.history.items():
             arrays[renamed.get(key, key)] = np.array(values)
-        np.savez(os.path.join(self.log_path, "evaluations.npz"), **arrays)  # type: ignore[arg-type]
+        with atomic_file(os.path.join(self.log_path, "evaluations.npz")) as file:
+            np.savez(file, **arrays)  # type: ignore[arg-type]

@@ -19,6 +19,8 @@ import base64
 import inspect
 import json
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +29,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_saeir.common.atomic import save_model
 from sb3_saeir.common.run_state import load_resume_state
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
 from sb3_saeir.config import ALGOS, build_callbacks, build_model, load_hyperparams, parse_policy_kwargs
@@ -48,7 +51,7 @@ class Experiment:
     :param task: task id (e.g. ``"cn-sparse-n3"``)
     :param hyperparams: the config entry (default: the packaged ``zoo_configs/<algo>.yml`` entry of ``task``)
     :param seed: seed of the model and the training env (game ``g`` gets ``seed + g``)
-    :param log_folder: the run's folder (``None``: nothing written by :meth:`build`; see :func:`next_run_folder`)
+    :param log_folder: the run's folder (``None``: nothing written by :meth:`build`; see :func:`claimed_run_folder`)
     :param n_games: override the config's ``n_envs`` (number of games)
     :param num_cpus: env worker processes of the training env (0: every game in this process); overrides the config's
         ``num_cpus``
@@ -201,12 +204,11 @@ class Experiment:
         )
 
     def save(self, path: str | Path) -> Path:
-        """Save the model; returns the zip's path."""
+        """Save the model, atomically (:func:`~sb3_saeir.common.atomic.save_model`: an interrupted or failed save
+        leaves the file that was there whole); returns the zip's path (``.zip`` added to a path without suffix)."""
         if self.model is None:
             raise RuntimeError("Experiment.save: nothing to save, call build() first.")
-        self.model.save(path)
-        path = Path(path)
-        return path if path.suffix == ".zip" else path.with_name(path.name + ".zip")
+        return save_model(self.model, path)
 
     def close(self) -> None:
         """Close the training env and every eval env this experiment made."""
@@ -325,8 +327,42 @@ def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]
 
 
 def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
-    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering)."""
+    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering), not created: two
+    commands asking at once get the same one (:func:`claimed_run_folder` creates it exclusively)."""
     return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
+
+
+@contextmanager
+def claimed_run_folder(log_folder: str | Path, algo: str, task: str) -> Iterator[Path]:
+    """Create the run folder ``<log_folder>/<algo>/<task>_<run>`` with the first unused run number, exclusively
+    (``os.mkdir`` fails on a folder that exists: the next number is tried), so that runs started together in one log
+    folder get different numbers. If the block raises (a bad setting found while building), the folder and the
+    parents created for it are removed again, when still empty: a refused command leaves nothing behind.
+
+    :param log_folder: the log folder (``-f``)
+    :param algo: the method
+    :param task: the task
+    :return: the run's folder, created and empty
+    """
+    parent = Path(log_folder) / algo
+    created = [parent, *parent.parents]
+    created = created[: next(index for index, folder in enumerate(created) if folder.is_dir())]  # deepest first
+    parent.mkdir(parents=True, exist_ok=True)
+    number = max(numbered_paths(parent, f"{task}_"), default=0) + 1  # files counted too: their names are taken
+    while True:
+        folder = parent / f"{task}_{number}"
+        try:
+            folder.mkdir()
+            break
+        except FileExistsError:
+            number += 1
+    try:
+        yield folder
+    except BaseException:
+        for empty in (folder, *created):
+            with suppress(OSError):  # not empty: something was written, keep it
+                empty.rmdir()
+        raise
 
 
 def checkpoint_steps(folder: str | Path) -> dict[int, Path]:

@@ -9,22 +9,27 @@ Writes rl-zoo's folder layout, ``<log-folder>/<algo>/<task>_<run>/``:
 
 - ``progress.csv`` (SB3's logger: every ``rollout/``, ``train/``, ``eval/`` and ``time/`` row).
 
-A new run number is used for every run, so nothing already saved is overwritten. ``--optimize`` tunes
-hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
+A new run number is used for every run, so nothing already saved is overwritten; the run folder is created
+exclusively, so runs started together get different numbers. Every file is replaced atomically
+(:mod:`sb3_saeir.common.atomic`). ``--optimize`` tunes hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
 
 **Resuming.** The checkpoints of ``--save-freq`` are resumable: each holds, besides the model, everything the rest of
 the run depends on (:mod:`sb3_saeir.common.run_state`). The same command with ``--resume`` continues the latest run
-of that algo and task (``--resume N``: run ``N``) from its last checkpoint, in its own folder, and ends as the run
-would have ended uninterrupted: same parameters, same ``progress.csv`` rows (but the ``time/`` columns), same
-evaluations. It refuses a command whose settings differ from the run's (``<task>/args.yml``, ``<task>/config.yml``),
-naming them. The first Ctrl-C finishes the rollout and update in progress, writes a checkpoint and stops (a second
-Ctrl-C stops at once); a killed run resumes from its last ``--save-freq`` checkpoint. ``-i`` keeps its meaning:
-continue a saved model with a fresh state (new run, new generators, fresh env).
+of that algo and task (``--resume N``: run ``N``; ``--resume FOLDER``: the run in that folder, e.g. one moved
+elsewhere) from its newest checkpoint that loads (those that do not are skipped, saying so), in its own folder, and
+ends as the run would have ended uninterrupted: same parameters, same ``progress.csv`` rows (but the ``time/``
+columns), same evaluations. It refuses a command whose settings differ from the run's (``<task>/args.yml``,
+``<task>/config.yml``), naming them. The first Ctrl-C finishes the rollout and update in progress, writes a
+checkpoint and stops (a second Ctrl-C stops at once); a killed run resumes from its last ``--save-freq`` checkpoint;
+a full disk stops it with one line naming the checkpoint to resume from. ``-i`` keeps its meaning: continue a saved
+model with a fresh state (new run, new generators, fresh env). See ``docs/guide/training.md``, "Stopping and
+resuming a run".
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import inspect
 import json
 import signal
@@ -33,7 +38,7 @@ import threading
 import time
 import zipfile
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,9 +49,16 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.utils import configure_logger, set_random_seed
 
+from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.common.run_state import RunCheckpointCallback, describe_resume, load_resume_state, progress_logger
+from sb3_saeir.common.run_state import (
+    RunCheckpointCallback,
+    checkpoint_problem,
+    describe_resume,
+    load_resume_state,
+    progress_logger,
+)
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import (
@@ -69,9 +81,9 @@ from sb3_saeir.experiment import (
     CHECKPOINT_NAME,
     Experiment,
     checkpoint_steps,
+    claimed_run_folder,
     config_budget,
     model_method_mismatch,
-    next_run_folder,
     run_numbers,
 )
 
@@ -79,6 +91,7 @@ __all__ = [
     "CONFIG_KEYS",
     "BudgetEstimate",
     "ConfigError",
+    "RunStoppedError",
     "check_arguments",
     "check_hyperparams",
     "main",
@@ -88,6 +101,26 @@ __all__ = [
     "train",
     "valid_keys",
 ]
+
+
+class RunStoppedError(RuntimeError):
+    """Training stopped by the system (a full disk): the message names the run's folder and the checkpoint
+    ``--resume`` continues from."""
+
+
+# errno values of a write that failed for want of space.
+NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def resume_target(text: str) -> int | Path:
+    """argparse type of ``--resume``'s value: a run number (``3``, as rl-zoo's ``--exp-id``; a number that is not
+    whole is refused), or else the path of a run folder (a run moved to another log folder:
+    ``--resume /data/logs/mappo/cn-sparse-n3_3``)."""
+    try:
+        float(text)
+    except ValueError:
+        return Path(text)
+    return count(text)
 
 
 def check_arguments(args: argparse.Namespace) -> None:
@@ -171,12 +204,16 @@ class ResumePoint:
     :param checkpoint: its last resumable checkpoint
     :param state: the checkpoint's resume state
     :param stored_args: the run's command line (its ``<task>/args.yml``)
+    :param skipped: the newer checkpoints that do not load, with why (the resume falls back past them)
+    :param by_path: the run was given by its folder's path (``--resume FOLDER``): ``-f`` is not compared
     """
 
     folder: Path
     checkpoint: Path
     state: dict[str, Any]
     stored_args: dict[str, Any]
+    skipped: tuple[tuple[Path, str], ...] = ()
+    by_path: bool = False
 
     @property
     def steps(self) -> int:
@@ -230,8 +267,8 @@ def config_record(hyperparams: dict[str, Any]) -> dict[str, Any]:
 
 def save_run_config(params_path: Path, hyperparams: dict[str, Any], args: argparse.Namespace) -> None:
     """``<task>/config.yml`` (resolved hyperparameters) and ``<task>/args.yml`` (the command line), as rl-zoo."""
-    (params_path / "config.yml").write_text(yaml.safe_dump(config_record(hyperparams), sort_keys=True))
-    (params_path / "args.yml").write_text(yaml.safe_dump({k: v for k, v in sorted(vars(args).items())}))
+    atomic_write_text(params_path / "config.yml", yaml.safe_dump(config_record(hyperparams), sort_keys=True))
+    atomic_write_text(params_path / "args.yml", yaml.safe_dump({k: v for k, v in sorted(vars(args).items())}))
 
 
 def _flag(option: str) -> str:
@@ -239,23 +276,28 @@ def _flag(option: str) -> str:
 
 
 def resume_differences(
-    stored_args: dict[str, Any], stored_config: dict[str, Any], args: argparse.Namespace, resolved: dict[str, Any]
+    stored_args: dict[str, Any],
+    stored_config: dict[str, Any],
+    args: argparse.Namespace,
+    resolved: dict[str, Any],
+    ignored: tuple[str, ...] = (),
 ) -> list[str]:
     """What differs between a run (its ``args.yml`` and ``config.yml``) and the command resuming it, as
     ``"<flag> <old> -> <new>"`` and ``"config <key> <old> -> <new>"``.
 
     An option the run's ``args.yml`` lacks (an older version) counts as its default; ``--seed -1`` takes the run's
-    seed; :data:`RESUME_FREE_OPTIONS` and the ``--optimize`` options are not compared.
+    seed; :data:`RESUME_FREE_OPTIONS`, the ``--optimize`` options and ``ignored`` are not compared.
 
     :param stored_args: the run's ``args.yml``
     :param stored_config: the run's ``config.yml``
     :param args: the command
     :param resolved: the command's resolved hyperparameters (the model's, after building)
+    :param ignored: more options not compared (``("log_folder",)`` for a run resumed by its folder's path)
     """
     parser = make_parser()
     command = vars(args)
     differences = []
-    for option in sorted(set(command) - {*RESUME_FREE_OPTIONS, *OPTIMIZE_OPTIONS}):
+    for option in sorted(set(command) - {*RESUME_FREE_OPTIONS, *OPTIMIZE_OPTIONS, *ignored}):
         old = stored_args.get(option, parser.get_default(option))
         new = command[option]
         if option == "seed" and new == -1:
@@ -277,57 +319,147 @@ def saved_timesteps(path: Path) -> int:
         return int(json.loads(archive.read("data"))["num_timesteps"])
 
 
-def find_resume_point(args: argparse.Namespace, n_timesteps: int) -> ResumePoint:
-    """The run ``--resume`` continues (the latest of ``--algo`` on ``--task`` in ``--log-folder``, or run ``N``) and its
-    last checkpoint; refuses a run that is finished or has no resumable checkpoint.
+# What <task>/args.yml and <task>/config.yml hold, for the message on a damaged one.
+RUN_FILES = {
+    "args.yml": "the command line that started the run, one 'option: value' line per option",
+    "config.yml": "the run's resolved hyperparameters, one 'key: value' line per key",
+}
 
-    :param args: the command
-    :param n_timesteps: the command's budget in agent-steps
-    :raises ~sb3_saeir.config.ConfigError: naming the run and the fix
+
+def read_run_file(path: Path) -> dict[str, Any]:
+    """A run's ``<task>/args.yml`` or ``<task>/config.yml``: a YAML mapping (``args.yml`` with an integer ``seed``).
+
+    :param path: the file
+    :raises ~sb3_saeir.config.ConfigError: naming the file, what is wrong with it and the fix
     """
+    try:
+        content = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = f"not valid YAML{where}: {getattr(error, 'problem', None) or error}"
+    else:
+        problem = ""
+        if not isinstance(content, dict) or not content:
+            problem = f"not a mapping of {path.stem}, but {type(content).__name__} {str(content)[:40]!r}"
+        elif path.name == "args.yml" and (isinstance(content.get("seed"), bool) or not isinstance(content.get("seed"), int)):
+            problem = f"no integer seed (seed: {content.get('seed')!r})"
+    if problem:
+        raise ConfigError(
+            f"--resume: {path} is damaged ({problem}). It holds {RUN_FILES[path.name]}: restore it from a copy, or "
+            f"write it again as another run's {path.name} (the run's own values), then resume; or start a new run "
+            "without --resume."
+        )
+    return content
+
+
+def find_run_folder(args: argparse.Namespace) -> Path:
+    """The run folder ``--resume`` names: the latest run of ``--algo`` on ``--task`` in ``--log-folder``, run ``N``,
+    or a run folder's path (a moved run).
+
+    :raises ~sb3_saeir.config.ConfigError: naming what is missing and the fix
+    """
+    if isinstance(args.resume, Path):
+        if not args.resume.is_dir():
+            raise ConfigError(
+                f"--resume {args.resume}: no such folder; give a run's number, or the path of a run folder such as "
+                f"logs/{args.algo}/{args.task}_1 (the folder holding rl_model_<steps>_steps.zip and {args.task}/)."
+            )
+        return args.resume
     runs = run_numbers(args.log_folder, args.algo, args.task)
     where = Path(args.log_folder) / args.algo
     if not runs:
-        raise ConfigError(f"--resume: no run of {args.algo} on {args.task} in {where}; start one without --resume.")
+        raise ConfigError(
+            f"--resume: no run of {args.algo} on {args.task} in {where}; start one without --resume (or, for a run "
+            "folder moved elsewhere, give its path: --resume FOLDER)."
+        )
     number = args.resume or max(runs)
     if number not in runs:
         raise ConfigError(
             f"--resume {number}: no run {number} of {args.algo} on {args.task} in {where}; runs: {sorted(runs)}."
         )
-    folder = runs[number]
-    args_path = folder / args.task / "args.yml"
-    if not args_path.is_file():
-        raise ConfigError(f"--resume: {folder} has no {args.task}/args.yml: it is not a run of this command.")
+    return runs[number]
+
+
+def newest_loading_checkpoint(folder: Path) -> tuple[Path | None, list[tuple[Path, str]]]:
+    """The newest checkpoint of a run folder that loads (:func:`~sb3_saeir.common.run_state.checkpoint_problem`;
+    ``None``: none does), and the newer ones that do not, with why.
+
+    :param folder: the run's folder
+    """
     checkpoints = checkpoint_steps(folder)
-    if not checkpoints:
+    skipped: list[tuple[Path, str]] = []
+    for steps in sorted(checkpoints, reverse=True):
+        problem = checkpoint_problem(checkpoints[steps])
+        if not problem:
+            return checkpoints[steps], skipped
+        skipped.append((checkpoints[steps], problem))
+    return None, skipped
+
+
+def resume_checkpoint(folder: Path) -> tuple[Path, list[tuple[Path, str]]]:
+    """The checkpoint ``--resume`` continues from: the newest that loads, and the newer ones skipped, with why.
+
+    :param folder: the run's folder
+    :raises ~sb3_saeir.config.ConfigError: when there is no checkpoint, or none loads
+    """
+    if not checkpoint_steps(folder):
         raise ConfigError(
             f"--resume: {folder} has no checkpoint ({CHECKPOINT_NAME.format(steps='<steps>')}): it ran without "
             "--save-freq and was not stopped with Ctrl-C. Continue its model with -i instead (a fresh state)."
         )
-    checkpoint = checkpoints[max(checkpoints)]
+    checkpoint, skipped = newest_loading_checkpoint(folder)
+    if checkpoint is None:
+        raise ConfigError(
+            f"--resume: no checkpoint of {folder} loads ({'; '.join(f'{path.name}: {why}' for path, why in skipped)}); "
+            "continue its model with -i if it has one, or start a new run without --resume."
+        )
+    return checkpoint, skipped
+
+
+def find_resume_point(args: argparse.Namespace, n_timesteps: int) -> ResumePoint:
+    """The run ``--resume`` continues (the latest of ``--algo`` on ``--task`` in ``--log-folder``, run ``N``, or the
+    run folder given by its path) and its newest checkpoint that loads; refuses a run that is finished, has no
+    resumable checkpoint, or whose ``args.yml`` is damaged.
+
+    :param args: the command
+    :param n_timesteps: the command's budget in agent-steps
+    :raises ~sb3_saeir.config.ConfigError: naming the run and the fix
+    """
+    folder = find_run_folder(args)
+    args_path = folder / args.task / "args.yml"
+    if not args_path.is_file():
+        raise ConfigError(f"--resume: {folder} has no {args.task}/args.yml: it is not a run of this command.")
+    stored_args = read_run_file(args_path)
+    checkpoint, skipped = resume_checkpoint(folder)
     state = load_resume_state(checkpoint)
     if state is None:
         raise ConfigError(
             f"--resume: {checkpoint} has no resume state (written by an older version): continue it with -i instead."
         )
-    resume = ResumePoint(folder, checkpoint, state, yaml.safe_load(args_path.read_text()) or {})
+    by_path = isinstance(args.resume, Path)
+    resume = ResumePoint(folder, checkpoint, state, stored_args, tuple(skipped), by_path)
     final = folder / f"{args.task}.zip"
-    if final.is_file() and saved_timesteps(final) >= resume.total_timesteps(n_timesteps):
+    if final.is_file() and not checkpoint_problem(final) and saved_timesteps(final) >= resume.total_timesteps(n_timesteps):
         raise ConfigError(f"--resume: {folder} is finished ({final.name} at {saved_timesteps(final):,} agent-steps).")
     return resume
 
 
 def check_resume_settings(resume: ResumePoint, args: argparse.Namespace, experiment: Experiment) -> None:
-    """Refuse a ``--resume`` whose command differs from the run's (one line per setting).
+    """Refuse a ``--resume`` whose command differs from the run's (one line per setting); ``-f`` is not compared
+    for a run given by its folder's path.
 
     :raises ~sb3_saeir.config.ConfigError: naming what differs and the fix
     """
-    stored_config = yaml.safe_load((resume.folder / args.task / "config.yml").read_text()) or {}
-    differences = resume_differences(resume.stored_args, stored_config, args, experiment.resolved_hyperparams)
+    stored_config = read_run_file(resume.folder / args.task / "config.yml")
+    ignored = ("log_folder",) if resume.by_path else ()
+    differences = resume_differences(resume.stored_args, stored_config, args, experiment.resolved_hyperparams, ignored)
     if differences:
+        moved = any(difference.startswith("-f ") for difference in differences)
+        hint = f" If the run folder was moved, give its path instead: --resume {resume.folder}." if moved else ""
         raise ConfigError(
             f"--resume: {resume.folder} was made with other settings: {'; '.join(differences)}. Fix: resume with the "
-            "command that started it, or start a new run without --resume."
+            f"command that started it, or start a new run without --resume.{hint}"
         )
 
 
@@ -344,7 +476,13 @@ def run_logger(args: argparse.Namespace, experiment: Experiment, resume: ResumeP
     if resume is None:
         return progress_logger(experiment.log_folder, None, 0, formats)
     rollout = int(getattr(experiment.model, "n_steps", 1)) * experiment.model.n_envs
-    return progress_logger(experiment.log_folder, resume.steps, resume.steps // rollout, formats)
+    expected_rows = resume.state.get("progress_rows")
+    return progress_logger(experiment.log_folder, resume.steps, resume.steps // rollout, formats, expected_rows, log=note)
+
+
+def note(message: str) -> None:
+    """Say something the user should know about the run (a row that cannot be restored, a checkpoint skipped)."""
+    print(f"Note: {message}", flush=True)
 
 
 @contextmanager
@@ -370,10 +508,13 @@ def checkpoint_on_ctrl_c(checkpoints: RunCheckpointCallback) -> Iterator[None]:
 
 
 def train(args: argparse.Namespace) -> Path:
-    """Train one run (or, with ``--resume``, continue one from its last checkpoint); returns its folder.
+    """Train one run (or, with ``--resume``, continue one from its newest checkpoint that loads); returns its folder.
 
     Everything that can fail on a bad setting (config, env, model, saved model, the settings of the run resumed) is
-    built and checked before the run folder is created or written, so a bad command leaves nothing behind.
+    built and checked before anything is written in the run folder; a new run's folder is claimed exclusively
+    (:func:`~sb3_saeir.experiment.claimed_run_folder`) and removed again when the command is refused, so a bad command
+    leaves nothing behind and runs started together get different numbers. A full disk stops the run with a
+    :class:`RunStoppedError` naming the folder and the checkpoint to resume from.
     """
     check_arguments(args)
     hyperparams = resolve_hyperparams(args)
@@ -386,39 +527,86 @@ def train(args: argparse.Namespace) -> Path:
     set_num_threads(args.num_threads)
     n_timesteps = config_budget(hyperparams)
     resume = find_resume_point(args, n_timesteps) if args.resume is not None else None
+    folder: AbstractContextManager[Path]
     if resume is not None:
-        seed, save_path = resume.seed, resume.folder
+        seed, folder = resume.seed, nullcontext(resume.folder)
     else:
         seed = int(np.random.randint(2**31 - 1)) if args.seed < 0 else args.seed
-        save_path = next_run_folder(args.log_folder, args.algo, args.task)
-    set_random_seed(seed)
-    experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
-    build_experiment(experiment, args, resume)
-    try:
-        checkpoints, callbacks = run_callbacks(args, experiment, resume)
-    except (ValueError, TypeError) as error:
-        experiment.close()
-        raise ConfigError(f"cannot set up evaluation or checkpoints: {error}") from error
+        folder = claimed_run_folder(args.log_folder, args.algo, args.task)
+    with folder as save_path:  # a new run's folder is removed again if the set-up fails
+        set_random_seed(seed)
+        experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
+        build_experiment(experiment, args, resume)
+        try:
+            checkpoints, callbacks = run_callbacks(args, experiment, resume)
+        except (ValueError, TypeError) as error:
+            experiment.close()
+            raise ConfigError(f"cannot set up evaluation or checkpoints: {error}") from error
     callbacks.append(BudgetEstimate(n_timesteps))
-    params_path = save_path / args.task
-    params_path.mkdir(parents=True, exist_ok=resume is not None)
     assert experiment.model is not None and experiment.env is not None
-    monitor = MultiAgentVecMonitor(experiment.env, str(save_path / "games"), env_id=args.task, append=resume is not None)
+    monitor = MultiAgentVecMonitor(
+        experiment.env, str(save_path / "games"), env_id=args.task, append=resume is not None, log=note
+    )
+    announce_run(args, experiment, resume, n_timesteps)
+    try:
+        write_run_files(args, experiment, monitor, resume, seed)
+        run_training(args, experiment, checkpoints, callbacks, resume, n_timesteps)
+    except OSError as error:
+        if error.errno not in NO_SPACE_ERRNOS:
+            raise
+        close_quietly(experiment, monitor)
+        raise RunStoppedError(no_space_message(error, save_path)) from None
+    finally:
+        experiment.close()
+    return save_path
+
+
+def write_run_files(
+    args: argparse.Namespace, experiment: Experiment, monitor: MultiAgentVecMonitor, resume: ResumePoint | None, seed: int
+) -> None:
+    """Set the model on the monitored env and the run's logger, and write ``<task>/config.yml`` and
+    ``<task>/args.yml`` of a new run."""
+    assert experiment.model is not None and experiment.log_folder is not None
+    params_path = experiment.log_folder / args.task
+    params_path.mkdir(exist_ok=resume is not None)
     experiment.model.set_env(monitor)
     experiment.model.set_logger(run_logger(args, experiment, resume))
     if resume is None:
         save_run_config(params_path, experiment.resolved_hyperparams, argparse.Namespace(**{**vars(args), "seed": seed}))
-    remaining = n_timesteps
+
+
+def announce_run(args: argparse.Namespace, experiment: Experiment, resume: ResumePoint | None, n_timesteps: int) -> None:
+    """Say what is trained, where, and (resuming) from which checkpoint, which newer ones were skipped and what cannot
+    be restored exactly."""
+    assert experiment.env is not None and experiment.log_folder is not None
+    save_path = experiment.log_folder
     n_agents = experiment.env.num_envs // experiment.n_games
     print(f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} agent-steps")
     if resume is not None:
         remaining = resume.total_timesteps(n_timesteps) - resume.steps
+        if resume.skipped:
+            skipped = ", ".join(f"{path.name} ({why})" for path, why in resume.skipped)
+            note(f"skipped the newest checkpoint(s) of {save_path}, which do not load: {skipped}")
         print(f"Resuming {save_path} from {resume.checkpoint.name}: {remaining:,} agent-steps to go")
         for message in describe_resume(experiment.model, resume.state):
-            print(f"Note: {message}")
+            note(message)
     elif args.n_timesteps is None:
         print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
     print(f"Log folder: {save_path}")
+
+
+def run_training(
+    args: argparse.Namespace,
+    experiment: Experiment,
+    checkpoints: RunCheckpointCallback,
+    callbacks: list[BaseCallback],
+    resume: ResumePoint | None,
+    n_timesteps: int,
+) -> None:
+    """Train (the first Ctrl-C: a checkpoint and a clean stop) and save the final model, saying what happens."""
+    assert experiment.log_folder is not None
+    save_path = experiment.log_folder
+    remaining = n_timesteps if resume is None else resume.total_timesteps(n_timesteps) - resume.steps
     start = time.time()
     try:
         with checkpoint_on_ctrl_c(checkpoints):
@@ -433,9 +621,31 @@ def train(args: argparse.Namespace) -> Path:
     if checkpoints.stopped_at is not None:
         print(f"Stopped at the checkpoint {checkpoints.stopped_at}: the same command with --resume continues it.")
     model_path = experiment.save(save_path / f"{args.task}.zip")
-    experiment.close()
     print(f"Saved {model_path} after {time.time() - start:.0f} s")
-    return save_path
+
+
+def no_space_message(error: OSError, folder: Path) -> str:
+    """One line for a run stopped by a full disk: what failed, the run's folder, the checkpoint to resume from."""
+    what = f"{error.strerror or 'no space left on the device'}" + (f" writing {error.filename}" if error.filename else "")
+    checkpoint, _ = newest_loading_checkpoint(folder)
+    if checkpoint is None:
+        return (
+            f"{what}: the run in {folder} stopped and has no checkpoint to resume from. Free some space and start it "
+            "again (--save-freq writes resumable checkpoints)."
+        )
+    return (
+        f"{what}: the run in {folder} stopped; its last good checkpoint is {checkpoint.name}. Free some space, then "
+        "run the same command with --resume to continue from it."
+    )
+
+
+def close_quietly(experiment: Experiment, monitor: MultiAgentVecMonitor) -> None:
+    """Close the run's open files (logger, monitor CSV) after a failed write: data still buffered for a full disk is
+    dropped here rather than reported at exit."""
+    for file_owner in (experiment.model.logger if experiment.model is not None else None, monitor.results_writer):
+        if file_owner is not None:
+            with suppress(OSError, ValueError):
+                file_owner.close()
 
 
 def build_experiment(experiment: Experiment, args: argparse.Namespace, resume: ResumePoint | None = None) -> None:
@@ -502,12 +712,12 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--resume",
         nargs="?",
-        type=count,
+        type=resume_target,
         const=0,
         default=None,
-        metavar="RUN",
-        help="continue the latest run of this algo and task (or run RUN) from its last checkpoint, exactly; give the "
-        "command that started it",
+        metavar="RUN|FOLDER",
+        help="continue the latest run of this algo and task (or run RUN, or the run folder FOLDER, e.g. one moved to "
+        "another log folder) from its newest checkpoint that loads, exactly; give the command that started it",
     )
     parser.add_argument("--verbose", type=int, default=1)
     parser.add_argument("-optimize", "--optimize-hyperparameters", "--optimize", dest="optimize", action="store_true")
@@ -535,6 +745,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, FileExistsError, MissingExtraError) as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 2
+    except RunStoppedError as error:
+        print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -21,8 +21,8 @@ from sb3_saeir.benchmark.runs import (
     spec_record,
     stored_spec_differences,
 )
+from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.common.run_state import atomic_write_text
 from sb3_saeir.config import (
     ALGOS,
     ConfigError,

@@ -5,7 +5,6 @@ runs in local worker processes or on a Ray cluster, with Ctrl-C stopping them al
 from __future__ import annotations
 
 import json
-import os
 import signal
 import sys
 import traceback
@@ -27,10 +26,11 @@ from sb3_saeir.benchmark.runs import (
     spec_record,
     write_rows,
 )
+from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, save_model
 from sb3_saeir.common.run_state import (
     RunCheckpointCallback,
     SegmentClock,
-    atomic_write_text,
+    checkpoint_problem,
     describe_resume,
     is_exact,
     progress_logger,
@@ -133,6 +133,23 @@ def _open_checkpoint(experiment: Any, checkpoint: Path, log: Callable[[str], Non
     return model, state
 
 
+def _damaged_checkpoint(checkpoint: Path, log: Callable[[str], None]) -> bool:
+    """Whether the run's checkpoint does not load (cut short or damaged); if so it is moved aside to
+    ``checkpoint.zip.damaged-<UTC time>`` (nothing deleted) and the run starts over, as a run with no checkpoint
+    does, saying so in its log.
+
+    :param checkpoint: the run's ``checkpoint.zip``
+    :param log: the run's log
+    """
+    problem = checkpoint_problem(checkpoint)
+    if not problem:
+        return False
+    kept = keep_damaged(checkpoint)
+    checkpoint.unlink()
+    log(f"{checkpoint.name} does not load ({problem}): kept as {kept.name}; the run starts over from the beginning")
+    return True
+
+
 def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, Any]:
     """Train and evaluate one run in ``folder`` (resuming from its checkpoint); returns its evaluation rows.
 
@@ -163,14 +180,15 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
     n_agents = experiment.env.num_envs // experiment.n_games
     checkpoint = path / CHECKPOINT_FILE
     state = None
-    resumed = checkpoint.is_file()
+    resumed = checkpoint.is_file() and not _damaged_checkpoint(checkpoint, log)
     if resumed:  # the model, its optimizer and ValueNorm statistics, its step counter; the rest at the next rollout
         model, state = _open_checkpoint(experiment, checkpoint, log)
     done_steps = model.num_timesteps if resumed else 0
     clock = SegmentClock(path / "segments.json", done_steps)
     rows, lost = _split_rows(evaluations_path, done_steps if resumed else None, log)
     rollout = int(getattr(model, "n_steps", 1)) * experiment.env.num_envs
-    model.set_logger(progress_logger(path, done_steps if resumed else None, done_steps // rollout))
+    expected_rows = state.get("progress_rows") if state is not None else None
+    model.set_logger(progress_logger(path, done_steps if resumed else None, done_steps // rollout, None, expected_rows, log))
     checkpoints = RunCheckpointCallback(
         path,
         CHECKPOINT_FILE,
@@ -232,9 +250,7 @@ def _finish(path: Path, clock: SegmentClock, model: Any) -> None:
     """Save the final model (``model.zip``, atomically), write ``done.json`` (total wall time over the segments) and
     remove the checkpoint."""
     timesteps = model.num_timesteps
-    temp = path / f".{Path(MODEL_FILE).stem}.tmp.zip"
-    model.save(temp)
-    os.replace(temp, path / MODEL_FILE)
+    save_model(model, path / MODEL_FILE)
     clock.tick(timesteps)
     summary = {"wall_s": round(clock.total_s, 1), "segments": len(clock.segments), "timesteps": timesteps}
     atomic_write_text(path / "done.json", json.dumps(summary))

@@ -20,7 +20,7 @@ from sb3_saeir.benchmark.runs import (
     write_rows,
 )
 from sb3_saeir.benchmark.statistics import TABLE_COLUMNS, final_rows, main_metric, pairwise_markdown, rliable_markdown
-from sb3_saeir.common.run_state import atomic_write_text
+from sb3_saeir.common.atomic import atomic_write_text
 
 
 def collect(out: Path, specs: list[RunSpec]) -> list[dict[str, Any]]:

@@ -15,7 +15,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.common.run_state import atomic_write_text, utc_stamp
+from sb3_saeir.common.atomic import atomic_write_text
+from sb3_saeir.common.run_state import utc_stamp
 from sb3_saeir.config import ConfigError, load_hyperparams
 
 # Files of a run folder.

@@ -37,11 +37,15 @@ from typing import Any, Protocol
 import cloudpickle
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger
+from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger, filter_excluded_keys
+
+from sb3_saeir.common.atomic import atomic_file, atomic_write_text, keep_damaged
 
 # The entry of a checkpoint zip that holds the resume state (SB3's load ignores it).
 RESUME_ENTRY = "resume_state.pkl"
 RESUME_FORMAT = 1
+# Entries of every SB3 model zip; SB3's save_to_zip_file writes the version last (its presence: the save finished).
+COMPLETE_ZIP_ENTRIES = ("data", "policy.pth", "_stable_baselines3_version")
 # Model attributes that determine the next rollout and are not (or not reliably) in SB3's zip.
 MODEL_RESUME_ATTRIBUTES = (
     "_last_obs",
@@ -70,22 +74,6 @@ class Resumable(Protocol):
 
 
 # ---------------------------------------------------------------------------------------------------- files
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``path`` through a temporary file moved into place: a kill leaves the old file or the new one.
-
-    :param path: the file
-    :param data: its new content
-    """
-    temp = path.with_name(f".{path.name}.tmp")
-    temp.write_bytes(data)
-    os.replace(temp, path)
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """:func:`atomic_write_bytes` for text (UTF-8)."""
-    atomic_write_bytes(path, text.encode())
-
-
 def utc_stamp() -> str:
     """The current UTC time, ``20250131T235959Z``."""
     return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
@@ -172,6 +160,7 @@ def capture_resume_state(model: Any, extras: dict[str, Resumable] | None = None)
             "name_to_excluded": dict(logger.name_to_excluded),
         },
         "extras": {name: extra.get_resume_state() for name, extra in (extras or {}).items()},
+        "progress_rows": progress_rows(logger),
     }
 
 
@@ -228,11 +217,10 @@ def save_checkpoint(model: Any, path: Path, extras: dict[str, Resumable] | None 
     :param path: the checkpoint's zip
     :param extras: other objects whose state the checkpoint carries (:func:`capture_resume_state`)
     """
-    temp = path.with_name(f".{path.stem}.tmp.zip")
-    model.save(temp)
-    with zipfile.ZipFile(temp, "a") as archive:
-        archive.writestr(RESUME_ENTRY, cloudpickle.dumps(capture_resume_state(model, extras)))
-    os.replace(temp, path)
+    with atomic_file(path, "w+b") as file:
+        model.save(file)
+        with zipfile.ZipFile(file, "a") as archive:
+            archive.writestr(RESUME_ENTRY, cloudpickle.dumps(capture_resume_state(model, extras)))
 
 
 def load_resume_state(path: Path) -> dict[str, Any] | None:
@@ -242,6 +230,32 @@ def load_resume_state(path: Path) -> dict[str, Any] | None:
             return None
         state: dict[str, Any] = cloudpickle.loads(archive.read(RESUME_ENTRY))
     return state if state.get("format") == RESUME_FORMAT else None
+
+
+def checkpoint_problem(path: Path) -> str:
+    """Why a checkpoint (or any model zip) cannot be loaded, in a few words (``""`` when it can): not a whole zip
+    (cut short by a kill or a full disk), an entry that fails its CRC check (bit rot), an entry of a finished save
+    missing (SB3 writes ``_stable_baselines3_version`` last: a save stopped by Ctrl-C closes the zip without it), a
+    ``data`` or resume state that does not read back.
+
+    :param path: the zip
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            damaged = archive.testzip()
+            if damaged is not None:
+                return f"its entry {damaged} fails the CRC check"
+            names = archive.namelist()
+            missing = [entry for entry in COMPLETE_ZIP_ENTRIES if entry not in names]
+            if missing:
+                return f"it has no {', '.join(missing)} entry (a save that did not finish)"
+            json.loads(archive.read("data"))
+            if RESUME_ENTRY in names:
+                cloudpickle.loads(archive.read(RESUME_ENTRY))
+    except Exception as error:  # anything that keeps it from loading: the zip is damaged
+        detail = str(error).splitlines()[0] if str(error) else "no detail"
+        return f"{type(error).__name__}: {detail}"
+    return ""
 
 
 def describe_resume(model: Any, state: dict[str, Any] | None) -> list[str]:
@@ -346,20 +360,51 @@ class RunCheckpointCallback(BaseCallback):
 
 # ---------------------------------------------------------------------------------------------------- progress.csv
 class ContinuedCSVOutputFormat(CSVOutputFormat):
-    """SB3's CSV writer going on with an existing file (header ``keys`` and its rows kept) instead of starting a new
-    one (SB3 opens with ``"w+"``). New keys are added as SB3 adds them (the file is rewritten with a wider header).
+    """SB3's CSV writer going on with an existing file (header ``keys`` and its ``rows`` kept) instead of starting a
+    new one (SB3 opens with ``"w+"``). When new keys arrive, the file is rewritten with the wider header as SB3 does,
+    but atomically (:func:`~sb3_saeir.common.atomic.atomic_write_text`: an interrupt leaves the old rows whole).
+    :attr:`rows` counts the rows in the file (a checkpoint records it, see :func:`progress_rows`).
 
     :param filename: the CSV file
     :param keys: its header (empty: start a new file)
+    :param rows: the rows already in it
     """
 
-    def __init__(self, filename: str, keys: list[str]) -> None:
+    def __init__(self, filename: str, keys: list[str], rows: int = 0) -> None:
         # not super().__init__, which opens with "w+" (truncates); the logger closes the file
+        self.path = filename
         self.file = open(filename, "r+" if keys else "w+")
         self.file.seek(0, os.SEEK_END)
         self.keys = list(keys)
+        self.rows = rows if keys else 0
         self.separator = ","
         self.quotechar = '"'
+
+    def write(self, key_values: dict[str, Any], key_excluded: dict[str, tuple[str, ...]], step: int = 0) -> None:
+        new_keys = [key for key in filter_excluded_keys(key_values, key_excluded, "csv") if key not in self.keys]
+        try:
+            if new_keys:
+                self._widen(new_keys)
+            super().write(key_values, key_excluded, step)
+        except OSError as error:  # a full disk: named by the file
+            error.filename = error.filename or self.path
+            raise
+        self.rows += 1
+
+    def _widen(self, new_keys: list[str]) -> None:
+        """Rewrite the file with ``new_keys`` added to the header (and empty cells to every row), atomically."""
+        self.file.seek(0)
+        lines = self.file.readlines()
+        keys = [*self.keys, *new_keys]
+        padding = self.separator * len(new_keys)
+        text = self.separator.join(keys) + "\n" + "".join(line[:-1] + padding + "\n" for line in lines[1:])
+        self.file.close()
+        try:
+            atomic_write_text(Path(self.path), text)
+            self.keys = keys
+        finally:  # the old file when the rewrite failed
+            self.file = open(self.path, "r+")
+            self.file.seek(0, os.SEEK_END)
 
 
 class ContinuedLogger(Logger):
@@ -380,46 +425,95 @@ class ContinuedLogger(Logger):
         super().record(key, value, exclude)
 
 
-def truncate_progress(path: Path, done_steps: int) -> list[str]:
-    """Keep the rows of a ``progress.csv`` dumped up to ``done_steps`` agent-steps (the checkpoint); drop later ones
-    and a last line cut by a kill. Returns the header (empty when there is nothing to keep).
+def progress_rows(logger: Logger) -> int | None:
+    """The rows in the logger's ``progress.csv`` (``None`` without a :class:`ContinuedCSVOutputFormat`)."""
+    return next((output.rows for output in logger.output_formats if isinstance(output, ContinuedCSVOutputFormat)), None)
+
+
+def _is_row(line: str, keys: list[str], column: int) -> bool:
+    """Whether a line of ``progress.csv`` is a whole row: one cell per key and a number (or nothing) as its
+    ``time/total_timesteps``."""
+    values = next(csv.reader([line]), [])
+    if len(values) != len(keys):
+        return False
+    try:
+        float(values[column] or 0)
+    except ValueError:
+        return False
+    return True
+
+
+def truncate_progress(
+    path: Path, done_steps: int, expected_rows: int | None = None, log: Callable[[str], None] = print
+) -> tuple[list[str], int]:
+    """Keep the rows of a ``progress.csv`` dumped up to the checkpoint and drop later ones (and a last line cut by a
+    kill: they are made again). Rows of the checkpoint's that are missing or damaged (the file deleted, cut short or
+    edited) cannot be restored: ``log`` says how many, and the damaged file is kept beside it
+    (:func:`keep_damaged`) before it is rewritten without them.
 
     :param path: the run's ``progress.csv``
     :param done_steps: agent-steps of the checkpoint
+    :param expected_rows: rows the file held at the checkpoint (``None``, a checkpoint of an older version: the rows up
+        to ``done_steps`` agent-steps are kept)
+    :param log: where to say what cannot be restored
+    :return: the header (empty when there is nothing to keep) and the number of rows kept
     """
+    lost = f"the {expected_rows} rows" if expected_rows is not None else "the rows"
+    fix = "the run goes on from the checkpoint and writes the rows after it"
     if not path.is_file():
-        return []
-    lines = path.read_text().split("\n")[:-1]  # the text after the last newline is a row cut by a kill
-    if not lines:
-        return []
-    keys = next(csv.reader([lines[0]]))
-    column = keys.index("time/total_timesteps") if "time/total_timesteps" in keys else None
-    kept = [lines[0]]
-    for line in lines[1:]:
-        values = next(csv.reader([line]), [])
-        if len(values) != len(keys):
-            continue
-        if column is not None and values[column] != "" and float(values[column]) > done_steps:
-            continue
-        kept.append(line)
-    atomic_write_text(path, "".join(line + "\n" for line in kept))
-    return keys
+        if expected_rows != 0 and done_steps > 0:
+            log(f"{path} is missing: {lost} written up to the checkpoint cannot be restored; {fix}.")
+        return [], 0
+    lines = path.read_text(errors="replace").split("\n")[:-1]  # after the last newline: a row cut by a kill
+    keys = next(csv.reader(lines[:1]), [])
+    if "time/total_timesteps" not in keys:  # empty, or the header damaged: no row can be read
+        if expected_rows != 0 and done_steps > 0:
+            copy = keep_damaged(path)
+            log(
+                f"{path} has no readable header: {lost} written up to the checkpoint cannot be restored (the file is "
+                f"kept as {copy.name}); {fix}."
+            )
+        return [], 0
+    column = keys.index("time/total_timesteps")
+    rows = lines[1:] if expected_rows is None else lines[1 : 1 + expected_rows]
+    damaged = [number for number, line in enumerate(rows, start=2) if not _is_row(line, keys, column)]
+    kept = [line for line in rows if _is_row(line, keys, column)]
+    if expected_rows is None:
+        kept = [line for line in kept if float(next(csv.reader([line]))[column] or 0) <= done_steps]
+    cut_short = 0 if expected_rows is None else expected_rows - len(rows)
+    if damaged or cut_short:
+        copy = keep_damaged(path)
+        reasons = [f"{len(damaged)} damaged (lines {', '.join(map(str, damaged))})"] if damaged else []
+        reasons += [f"{cut_short} missing at its end (the file was cut short)"] if cut_short else []
+        log(
+            f"{path}: {len(damaged) + cut_short} rows written up to the checkpoint cannot be restored "
+            f"({'; '.join(reasons)}) and are left out (the damaged file is kept as {copy.name}); {fix}."
+        )
+    atomic_write_text(path, "".join(line + "\n" for line in [lines[0], *kept]))
+    return keys, len(kept)
 
 
 def progress_logger(
-    folder: Path, done_steps: int | None, iteration_offset: int, output_formats: list[KVWriter] | None = None
+    folder: Path,
+    done_steps: int | None,
+    iteration_offset: int,
+    output_formats: list[KVWriter] | None = None,
+    expected_rows: int | None = None,
+    log: Callable[[str], None] = print,
 ) -> Logger:
     """The run's logger: ``progress.csv`` started anew (``done_steps`` ``None``) or continued after its rows up to the
-    checkpoint, plus ``output_formats`` (stdout, tensorboard, ...).
+    checkpoint (:func:`truncate_progress`), plus ``output_formats`` (stdout, tensorboard, ...).
 
     :param folder: the run's folder
     :param done_steps: agent-steps of the checkpoint resumed from, ``None`` for a fresh start
     :param iteration_offset: rollouts done before the checkpoint
     :param output_formats: the logger's other writers
+    :param expected_rows: rows ``progress.csv`` held at the checkpoint (its resume state's ``progress_rows``)
+    :param log: where to say which rows cannot be restored
     """
     path = folder / "progress.csv"
-    keys = truncate_progress(path, done_steps) if done_steps is not None else []
-    formats: list[KVWriter] = [*(output_formats or []), ContinuedCSVOutputFormat(str(path), keys)]
+    keys, rows = truncate_progress(path, done_steps, expected_rows, log) if done_steps is not None else ([], 0)
+    formats: list[KVWriter] = [*(output_formats or []), ContinuedCSVOutputFormat(str(path), keys, rows)]
     return ContinuedLogger(str(folder), formats, iteration_offset)
 
 

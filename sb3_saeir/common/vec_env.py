@@ -17,6 +17,9 @@ reset together. Episode statistics are recorded once per game (not once per agen
 from __future__ import annotations
 
 import collections
+import csv
+import io
+import json
 import os
 import time
 import warnings
@@ -30,6 +33,7 @@ from pettingzoo.utils.env import AECEnv, ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
+from sb3_saeir.common.atomic import atomic_write_text, keep_damaged
 from sb3_saeir.common.game_workers import GameWorkerPool, GameWorkerVecEnv
 from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
 from sb3_saeir.common.utils import check_bool
@@ -752,13 +756,23 @@ class MultiAgentVecMonitor(VecEnvWrapper):
     :param filename: path prefix of the CSV (``"<dir>/games"`` -> ``<dir>/games.monitor.csv``); ``None``: no file
     :param env_id: written in the CSV header
     :param append: continue an existing CSV instead of overwriting it
+    :param log: where :meth:`set_resume_state` says which rows of the CSV were missing or damaged and could or could
+        not be restored (default: a warning)
     """
 
     # observations, rewards and dones pass through unchanged (double-buffered sampling may run under this wrapper)
     passes_steps_through = True
 
-    def __init__(self, venv: VecEnv, filename: str | None = None, env_id: str = "games", append: bool = False) -> None:
+    def __init__(
+        self,
+        venv: VecEnv,
+        filename: str | None = None,
+        env_id: str = "games",
+        append: bool = False,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
         super().__init__(venv)
+        self.log = log if log is not None else _warn
         self.filename = filename
         self.env_id = env_id
         check_bool("MultiAgentVecMonitor", append=append)
@@ -795,7 +809,11 @@ class MultiAgentVecMonitor(VecEnvWrapper):
             self.results_writer = ResultsWriter(
                 self.filename, header=header, extra_keys=tuple(episode), override_existing=not keep
             )
-        self.results_writer.write_row(row)
+        try:
+            self.results_writer.write_row(row)
+        except OSError as error:  # a full disk: named by the file
+            error.filename = error.filename or self.csv_path
+            raise
 
     @property
     def csv_path(self) -> str:
@@ -825,16 +843,104 @@ class MultiAgentVecMonitor(VecEnvWrapper):
         if self.results_writer is not None:
             self.results_writer.close()
             self.results_writer = None
-        if self.filename is not None and os.path.isfile(self.csv_path):
-            with open(self.csv_path) as file:
-                lines = file.read().split("\n")[:-1]  # after the last newline: a row cut by a kill
-            # the header's two lines, then one row per game finished by then (each finished game wrote its row)
-            kept = lines[: 2 + self.n_finished_games] if self.n_finished_games else []
-            with open(self.csv_path, "w") as file:
-                file.write("".join(line + "\n" for line in kept))
+        if self.filename is not None and (self.n_finished_games or os.path.isfile(self.csv_path)):
+            kept = self._restored_csv_lines()
+            atomic_write_text(self.csv_path, "".join(line + "\n" for line in kept))
             self.append = bool(kept)
+
+    def _restored_csv_lines(self) -> list[str]:
+        """The CSV's lines at the checkpoint: its header's two lines, then one row per game finished by then (rows
+        written after it, by an interrupted process, are left out). A row that is missing or damaged (the file cut
+        short, deleted or edited) is written again from :attr:`episodes` when it is among the last 10,000 games;
+        :attr:`log` says how many rows were written again and how many cannot be restored, and the damaged file is
+        kept beside it (:func:`~sb3_saeir.common.atomic.keep_damaged`)."""
+        path, n_rows = self.csv_path, self.n_finished_games
+        exists = os.path.isfile(path)
+        if exists:
+            with open(path, newline="") as file:
+                lines = file.read().split("\n")[:-1]  # after the last newline: a row cut by a kill
+        else:
+            lines = []
+        if not n_rows:
+            return []
+        records = list(self.episodes)
+        columns = _monitor_columns(lines[:2])
+        new_header = not columns
+        if new_header:
+            columns = ["r", "l", "t", *[key for key in records[-1] if key not in ("r", "l", "t")]]
+        header = self._csv_header(columns) if new_header else lines[:2]
+        rows = lines[2 : 2 + n_rows]
+        first_record = n_rows - len(records)  # the game of records[0]
+        kept, restored, lost = [], 0, 0
+        for game in range(n_rows):
+            if game < len(rows) and _is_monitor_row(rows[game], columns):
+                kept.append(rows[game])
+            elif game >= first_record:
+                kept.append(_monitor_row(records[game - first_record], columns))
+                restored += 1
+            else:
+                lost += 1
+        if restored or lost or new_header:
+            self._report_restored(path, exists, restored, lost, new_header and exists)
+        return [*header, *kept]
+
+    def _csv_header(self, columns: list[str]) -> list[str]:
+        """The two header lines of the CSV as SB3's ``ResultsWriter`` writes them (a JSON line, the column names)."""
+        return ["#" + json.dumps({"t_start": self.t_start, "env_id": self.env_id}), _monitor_row({}, columns, header=True)]
+
+    def _report_restored(self, path: str, existed: bool, restored: int, lost: int, new_header: bool) -> None:
+        """Say which rows of the monitor CSV were missing or damaged, which were written again from the checkpoint and
+        how many cannot be restored; keep the damaged file."""
+        where = f"the damaged file is kept as {os.path.basename(keep_damaged(path))}" if existed else "it was missing"
+        parts = [f"{restored} written again from the checkpoint"] if restored else []
+        if lost:
+            parts.append(f"{lost} older than its last {self.episodes.maxlen:,} games cannot be restored and are left out")
+        if new_header:
+            parts.append("the header written again")
+        self.log(
+            f"{path}: {restored + lost} rows of the games finished by the checkpoint were missing or damaged "
+            f"({'; '.join(parts)}; {where}); the run goes on from the checkpoint."
+        )
 
     def close(self) -> None:
         if self.results_writer is not None:
             self.results_writer.close()
         super().close()
+
+
+def _warn(message: str) -> None:
+    """A monitor's default ``log``: a warning."""
+    warnings.warn(message, stacklevel=3)
+
+
+def _monitor_columns(header: list[str]) -> list[str]:
+    """The column names of a monitor CSV from its two header lines (empty when they are missing or damaged)."""
+    if len(header) < 2 or not header[0].startswith("#"):
+        return []
+    try:
+        json.loads(header[0][1:])
+    except ValueError:
+        return []
+    columns = next(csv.reader([header[1].rstrip("\r")]), [])
+    return columns if columns[:3] == ["r", "l", "t"] else []
+
+
+def _is_monitor_row(line: str, columns: list[str]) -> bool:
+    """Whether a line of a monitor CSV is a whole row: one cell per column, numbers as ``r``, ``l`` and ``t``."""
+    values = next(csv.reader([line.rstrip("\r")]), [])
+    if len(values) != len(columns):
+        return False
+    try:
+        [float(value) for value in values[:3]]
+    except ValueError:
+        return False
+    return True
+
+
+def _monitor_row(record: dict[str, Any], columns: list[str], header: bool = False) -> str:
+    """A row (or, with ``header``, the column line) of a monitor CSV as SB3's ``ResultsWriter`` writes it, without the
+    final newline."""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns, extrasaction="ignore")
+    writer.writeheader() if header else writer.writerow(record)
+    return text.getvalue()[:-1]

@@ -15,7 +15,7 @@ import pathlib
 import pickle
 import warnings
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -30,6 +30,7 @@ from stable_baselines3.common.utils import FloatSchedule, explained_variance, ob
 from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
+from sb3_saeir.common.atomic import save_zip
 from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length
 from sb3_saeir.common.callbacks import episode_metric_means
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
@@ -1042,6 +1043,26 @@ class MAPPO(OnPolicyAlgorithm):
             if isinstance(error, json.JSONDecodeError) or "Names of parameters do not match" in str(error):
                 raise _incomplete_model_error(name, path, error) from None
             raise
+
+    def save(
+        self,
+        path: str | pathlib.Path | io.BufferedIOBase,
+        exclude: Iterable[str] | None = None,
+        include: Iterable[str] | None = None,
+    ) -> None:
+        """SB3's ``save``, atomic for a path: the zip is written to a temporary file in the same folder and moved onto
+        the path when complete (:func:`~sb3_saeir.common.atomic.save_zip`), so Ctrl-C, a kill or a full disk during
+        the save leaves the file that was there whole. SB3's path rules are kept (``.zip`` added to a path without
+        suffix); a file object is written to directly, as by SB3.
+
+        :param path: path to the file where the model should be saved, or a binary file object
+        :param exclude: name of parameters that should be excluded in addition to the default ones
+        :param include: name of parameters that might be excluded but should be included anyway
+        """
+        if isinstance(path, (str, os.PathLike)):
+            save_zip(path, lambda file: super(MAPPO, self).save(file, exclude=exclude, include=include))
+        else:
+            super().save(path, exclude=exclude, include=include)
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards"]

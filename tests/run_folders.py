@@ -1,0 +1,81 @@
+"""Tiny training runs of ``python -m sb3_saeir.train`` for the tests of damaged, moved and concurrent run folders."""
+
+import csv
+import shutil
+import zipfile
+from pathlib import Path
+
+import torch as th
+import yaml
+
+from sb3_saeir.train import main as train_main
+
+# 2 games x 3 agents: 60 agent-steps per rollout; checkpoints at 120, 240, ..., 840 agent-steps; evaluations at 250,
+# 500, 750 (the settings of tests/test_train_resume.py)
+SETTINGS = [
+    "--algo", "mappo", "--task", "cn-sparse-n3", "--seed", "3", "-n", "900", "--n-games", "2", "--eval-freq", "250",
+    "--eval-episodes", "2", "--save-freq", "120", "--num-threads", "1", "--verbose", "0",
+    "-params", "n_steps:10", "n_epochs:2",
+]  # fmt: skip
+TASK = "cn-sparse-n3"
+LAST_CHECKPOINT = 840
+
+
+def argv(log_folder, *extra):
+    """The command line of the tiny run in ``log_folder``."""
+    return [*SETTINGS, "-f", str(log_folder), *extra]
+
+
+def finished_run(log_folder):
+    """Train the tiny run to its end in ``log_folder``; returns its folder."""
+    assert train_main(argv(log_folder)) == 0
+    return Path(log_folder) / "mappo" / f"{TASK}_1"
+
+
+def unfinished_copy(run, log_folder, moved=False):
+    """A copy of a finished run in ``log_folder`` without its final model: ``--resume`` continues it from its last
+    checkpoint (840 agent-steps) and ends as the finished run. Its ``args.yml`` names the new log folder, as if it had
+    been started there, unless ``moved``.
+    """
+    folder = Path(log_folder) / "mappo" / f"{TASK}_1"
+    shutil.copytree(run, folder)
+    (folder / f"{TASK}.zip").unlink()
+    if not moved:
+        args_path = folder / TASK / "args.yml"
+        args = yaml.safe_load(args_path.read_text())
+        args_path.write_text(yaml.safe_dump({**args, "log_folder": str(log_folder)}))
+    return folder
+
+
+def checkpoint(folder, steps):
+    return Path(folder) / f"rl_model_{steps}_steps.zip"
+
+
+def parameters(path):
+    with zipfile.ZipFile(path) as archive, archive.open("policy.pth") as file:
+        return th.load(file, map_location="cpu")
+
+
+def assert_same_parameters(path, reference):
+    """The models at ``path`` and ``reference`` have the same parameters, bit for bit."""
+    final, expected = parameters(path), parameters(reference)
+    assert final.keys() == expected.keys()
+    for name in expected:
+        assert th.equal(final[name], expected[name]), name
+
+
+def read_rows(path, skip=0):
+    with open(path, newline="") as file:
+        for _ in range(skip):
+            file.readline()
+        return list(csv.DictReader(file))
+
+
+def monitor_rows(folder):
+    """The rows of a run's ``games.monitor.csv`` without their wall time ``t``."""
+    return [{key: value for key, value in row.items() if key != "t"} for row in read_rows(folder / "games.monitor.csv", 1)]
+
+
+def snapshot(folder):
+    """Every file under ``folder`` with its content: a refused command must leave it as it was."""
+    return {path: path.read_bytes() for path in sorted(Path(folder).rglob("*")) if path.is_file()}

@@ -1,0 +1,245 @@
+"""``python -m sb3_saeir.train --resume`` on a damaged run folder: a checkpoint that does not load is skipped (one line
+names it) and the run goes on from the newest one that loads, ending as the run uninterrupted; a damaged ``args.yml``
+or ``config.yml`` is refused in one line naming the file and the fix, nothing written; rows of ``games.monitor.csv``
+that are cut, deleted or damaged are written again from the checkpoint, and rows of ``progress.csv`` that cannot be
+restored are counted in a note naming the file (the damaged file is kept), never dropped without a word."""
+
+import re
+import zipfile
+
+import pytest
+
+from sb3_saeir.train import main as train_main
+from tests.run_folders import (
+    LAST_CHECKPOINT,
+    TASK,
+    argv,
+    assert_same_parameters,
+    checkpoint,
+    finished_run,
+    monitor_rows,
+    read_rows,
+    snapshot,
+    unfinished_copy,
+)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The tiny run, uninterrupted."""
+    return finished_run(tmp_path_factory.mktemp("uninterrupted"))
+
+
+@pytest.fixture
+def run(reference, tmp_path):
+    """A copy of the run stopped after its last checkpoint (840 agent-steps)."""
+    return unfinished_copy(reference, tmp_path / "logs")
+
+
+def resume(run, capsys):
+    """``--resume`` the run; returns the exit status, stdout and stderr."""
+    status = train_main(argv(run.parent.parent, "--resume"))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+# ---------------------------------------------------------------------------------------------------- checkpoints
+def cut(path, fraction=0.5):
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * fraction)])
+
+
+def flip_a_byte(path):
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # inside policy.pth or the optimizer's state: the CRC check fails
+    path.write_bytes(bytes(data))
+
+
+def not_a_zip(path):
+    path.write_text("not a zip file\n")
+
+
+def stopped_save(path):
+    """The zip as SB3's save leaves it when Ctrl-C stops it: closed, without the entries written last."""
+    with zipfile.ZipFile(path) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, data in entries.items():
+            if name not in ("_stable_baselines3_version", "system_info.txt"):
+                archive.writestr(name, data)
+
+
+DAMAGED_CHECKPOINTS = {
+    "cut at 50%": (cut, [840]),
+    "cut to 0 bytes": (lambda path: cut(path, 0.0), [840]),
+    "a byte flipped": (flip_a_byte, [840]),
+    "not a zip": (not_a_zip, [840]),
+    "save stopped by Ctrl-C": (stopped_save, [840]),
+    "the two newest cut": (cut, [840, 720]),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGED_CHECKPOINTS))
+def test_resume_falls_back_to_the_newest_checkpoint_that_loads(reference, run, capsys, damage):
+    damage_file, steps = DAMAGED_CHECKPOINTS[damage]
+    for step in steps:
+        damage_file(checkpoint(run, step))
+    status, out, err = resume(run, capsys)
+    assert status == 0, err
+    notes = [line for line in out.splitlines() if line.startswith("Note: skipped")]
+    assert len(notes) == 1, out
+    assert all(checkpoint(run, step).name in notes[0] for step in steps), notes
+    resumed_from = checkpoint(run, min(steps) - 120)
+    assert f"Resuming {run} from {resumed_from.name}" in out
+    assert_same_parameters(run / f"{TASK}.zip", reference / f"{TASK}.zip")  # the run ends as uninterrupted
+    assert monitor_rows(run) == monitor_rows(reference)
+
+
+def test_no_checkpoint_that_loads_is_refused_in_one_line(run, capsys):
+    for path in run.glob("rl_model_*_steps.zip"):
+        cut(path, 0.3)
+    before = snapshot(run)
+    status, _, err = resume(run, capsys)
+    assert status == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"no checkpoint of {run} loads" in err and "rl_model_120_steps.zip: BadZipFile" in err
+    assert snapshot(run) == before
+
+
+# ---------------------------------------------------------------------------------------------------- args.yml, config.yml
+DAMAGED_RUN_FILES = [
+    ("args.yml", b"seed: [1, 2\n", "not valid YAML"),
+    ("args.yml", b"- mappo\n- 3\n", "not a mapping of args, but list"),
+    ("args.yml", b"", "not a mapping of args, but NoneType"),
+    ("args.yml", b"algo: mappo\ntask: cn-sparse-n3\n", "no integer seed"),
+    ("args.yml", b"\xff\xfe\x00\x01 binary", "not valid YAML"),
+    ("config.yml", b"n_steps: 10\n  gamma: [0.99\n", "not valid YAML"),
+    ("config.yml", b"just a string\n", "not a mapping of config, but str"),
+]
+
+
+@pytest.mark.parametrize(("name", "content", "problem"), DAMAGED_RUN_FILES)
+def test_a_damaged_run_file_is_named_and_nothing_written(run, capsys, name, content, problem):
+    path = run / TASK / name
+    path.write_bytes(content)
+    before = snapshot(run)
+    status, _, err = resume(run, capsys)
+    assert status == 2, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert f"{path} is damaged ({problem}" in err and "restore it from a copy" in err, err
+    assert snapshot(run) == before
+
+
+# ---------------------------------------------------------------------------------------------------- games.monitor.csv
+def cut_mid_row(path, fraction):
+    text = path.read_bytes()
+    cut_at = int(len(text) * fraction)
+    while text[cut_at - 1 : cut_at] in (b"\n", b"\r"):  # inside a row, not at its end
+        cut_at -= 1
+    path.write_bytes(text[:cut_at])
+
+
+def replace_line(path, number, text):
+    lines = path.read_bytes().split(b"\n")
+    lines[number] = text
+    path.write_bytes(b"\n".join(lines))
+
+
+DAMAGED_MONITORS = {
+    "cut mid-row at 40%": (lambda path: cut_mid_row(path, 0.4), "written again from the checkpoint"),
+    "deleted": (lambda path: path.unlink(), "it was missing"),
+    "a row garbled": (lambda path: replace_line(path, 4, b"0.5,oops"), "1 rows of the games"),
+    "header garbled": (lambda path: replace_line(path, 0, b"garbage"), "the header written again"),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGED_MONITORS))
+def test_monitor_rows_are_written_again_from_the_checkpoint(reference, run, capsys, damage):
+    damage_file, said = DAMAGED_MONITORS[damage]
+    path = run / "games.monitor.csv"
+    damage_file(path)
+    status, out, err = resume(run, capsys)
+    assert status == 0, err
+    notes = [line for line in out.splitlines() if line.startswith(f"Note: {path}")]
+    assert len(notes) == 1 and said in notes[0], out
+    assert monitor_rows(run) == monitor_rows(reference)  # every row, none lost
+    kept = list(run.glob("games.monitor.csv.damaged-*"))
+    assert len(kept) == (0 if damage == "deleted" else 1)
+
+
+# ---------------------------------------------------------------------------------------------------- progress.csv
+def checkpoint_rows(folder):
+    """The rows of ``progress.csv`` dumped up to the last checkpoint."""
+    return [row for row in read_rows(folder / "progress.csv") if int(row["time/total_timesteps"]) <= LAST_CHECKPOINT]
+
+
+def later_rows(folder):
+    return [row for row in read_rows(folder / "progress.csv") if int(row["time/total_timesteps"]) > LAST_CHECKPOINT]
+
+
+def steps_column(rows):
+    return [row["time/total_timesteps"] for row in rows]
+
+
+def test_deleted_progress_csv_is_reported_with_its_rows(reference, run, capsys):
+    (run / "progress.csv").unlink()
+    status, out, err = resume(run, capsys)
+    assert status == 0, err
+    n_rows = len(checkpoint_rows(reference))
+    assert f"Note: {run / 'progress.csv'} is missing: the {n_rows} rows written up to the checkpoint cannot be restored" in out
+    assert steps_column(read_rows(run / "progress.csv")) == steps_column(later_rows(reference))
+
+
+@pytest.mark.parametrize("fraction", [0.3, 0.7])
+def test_progress_csv_cut_mid_row_is_reported_with_its_rows(reference, run, capsys, fraction):
+    path = run / "progress.csv"
+    cut_mid_row(path, fraction)
+    whole_rows = len(path.read_bytes().split(b"\n")) - 2  # the header, and the row cut short
+    status, out, err = resume(run, capsys)
+    assert status == 0, err
+    lost = len(checkpoint_rows(reference)) - whole_rows
+    note = re.search(rf"Note: {re.escape(str(path))}: (\d+) rows written up to the checkpoint cannot be restored", out)
+    assert note is not None and int(note[1]) == lost > 0, out
+    assert f"{lost} missing at its end" in out and "the damaged file is kept as progress.csv.damaged-" in out
+    expected = [*checkpoint_rows(reference)[:whole_rows], *later_rows(reference)]
+    assert steps_column(read_rows(path)) == steps_column(expected)  # nothing else lost
+    assert len(list(run.glob("progress.csv.damaged-*"))) == 1
+
+
+def test_a_garbled_progress_row_is_reported_by_its_line(reference, run, capsys):
+    path = run / "progress.csv"
+    replace_line(path, 3, b"1,2,three")
+    status, out, err = resume(run, capsys)
+    assert status == 0, err
+    assert f"Note: {path}: 1 rows written up to the checkpoint cannot be restored (1 damaged (lines 4))" in out
+    expected = [row for index, row in enumerate(checkpoint_rows(reference)) if index != 2] + later_rows(reference)
+    assert steps_column(read_rows(path)) == steps_column(expected)
+
+
+def test_a_garbled_progress_header_is_reported(reference, run, capsys):
+    path = run / "progress.csv"
+    replace_line(path, 0, b"not,a,header")
+    status, out, err = resume(run, capsys)
+    assert status == 0, err
+    assert f"Note: {path} has no readable header: the {len(checkpoint_rows(reference))} rows" in out
+    assert steps_column(read_rows(path)) == steps_column(later_rows(reference))
+
+
+# ---------------------------------------------------------------------------------------------------- the benchmark
+def test_a_benchmark_run_whose_checkpoint_does_not_load_starts_over(tmp_path, capsys):
+    """The benchmark keeps one checkpoint per run: when it does not load, it is kept aside and the run starts over
+    (saying so), ending with the rows of a run never interrupted."""
+    from sb3_saeir.benchmark import RunSpec, execute_run
+
+    spec = RunSpec("mappo", TASK, 1, 900, n_games=2, eval_freq=250, eval_episodes=2, params={"n_steps": 10, "n_epochs": 2})
+    reference = execute_run(spec, str(tmp_path / "reference"))
+    folder = tmp_path / "damaged"
+    execute_run(RunSpec(**{**spec.__dict__, "n_timesteps": 120}), str(folder))  # the spec file, and a start
+    (folder / "done.json").unlink()
+    (folder / "spec.json").write_text((tmp_path / "reference" / "spec.json").read_text())
+    (folder / "checkpoint.zip").write_bytes(b"PK\x03\x04 cut short")
+    capsys.readouterr()
+    result = execute_run(spec, str(folder))
+    out = capsys.readouterr().out
+    assert "checkpoint.zip does not load (BadZipFile" in out and "the run starts over from the beginning" in out
+    assert result["status"] == "done" and result["rows"] == reference["rows"]
+    assert len(list(folder.glob("checkpoint.zip.damaged-*"))) == 1

@@ -224,7 +224,7 @@ def check_output_file(option: str, file: str | os.PathLike | None) -> None:
     parent = path.parent
     if not parent.is_dir():
         raise ConfigError(f"{option} {path}: the folder {parent} does not exist.")
-    if not os.access(parent, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    if unwritable_folder(parent) or (path.exists() and not os.access(path, os.W_OK)):
         raise ConfigError(f"{option} {path} is not writable.")
 
 

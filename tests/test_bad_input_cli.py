@@ -365,9 +365,19 @@ def test_hidden_size_is_checked_on_the_command_lines(root, capsys, value):
 @pytest.mark.parametrize("folder", ["/proc/logs", "/sys/logs"])
 def test_log_folder_that_cannot_be_created(root, capsys, folder):
     """A folder the OS refuses although the permission bits allow it (root on /proc, /sys) ended in a traceback."""
-    message = f"-f/--log-folder {folder}: /{folder.split('/')[1]} is not writable"
+    message = f"-f/--log-folder {folder}: "  # /proc: no file can be created in /proc; /sys: /sys is not writable
     assert_refused(train_main, [*TRAIN, "-f", folder], message, capsys, root)
     assert_refused(zoo_main, [*ZOO_TRAIN, "-f", folder, "-conf", zoo_conf(root)], message, capsys, root)
+
+
+def test_output_files_and_folders_the_os_refuses(root, models, capsys):
+    """``--gif`` and ``--out`` under /proc passed the permission check as root and failed at the end (a traceback)."""
+    enjoy = ["--algo", "saeir_ppo", "--model", str(models / "saeir.zip"), "-n", "1", "--n-games", "1"]
+    assert_refused(enjoy_main, [*enjoy, "--gif", "/proc/replay.gif"], "--gif /proc/replay.gif is not writable", capsys, root)
+    bench = ["--algos", "mappo", "--seeds", "1", "-n", "100", "--eval-freq", "50", "--n-games", "2"]
+    assert_refused(
+        benchmark_main, [*bench, "--out", "/proc/bench"], "--out /proc/bench: no file can be created in /proc", capsys, root
+    )
 
 
 @pytest.mark.parametrize("seed", ["-5", str(2**32)])

@@ -106,7 +106,7 @@ def unwritable_folder(folder: str | os.PathLike) -> str:
     try:
         handle, probe = tempfile.mkstemp(dir=existing, prefix=".sb3_saeir-write-test-")
     except OSError as error:
-        return f"{existing} is not writable ({error.strerror})"
+        return f"no file can be created in {existing} ({error.strerror})"
     os.close(handle)
     os.remove(probe)
     return ""

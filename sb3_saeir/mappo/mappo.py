@@ -370,8 +370,8 @@ def check_double_buffered(algo_name: str, double_buffered: Any) -> None:
 
 
 def check_save_path(algo_name: str, path: Any) -> None:
-    """Refuse a ``save`` path where no file can be written, before anything is written: a folder, a path under a
-    file, or a folder that is not writable (SB3 would recurse without end under ``/proc``, or fail with the OS's
+    """Refuse a ``save`` path where no file can be written, before anything is written: an empty name, a path under a
+    file, or in a folder that is not writable (SB3 would recurse without end under ``/proc``, or fail with the OS's
     message). A file object passes (SB3 writes to it).
 
     :param algo_name: class name for the message
@@ -379,11 +379,11 @@ def check_save_path(algo_name: str, path: Any) -> None:
     """
     if not isinstance(path, (str, os.PathLike)):
         return
+    if str(path) in ("", "."):
+        raise ValueError(f"{algo_name}.save: {str(path)!r} is not a file name; pass e.g. 'model.zip'.")
     target = pathlib.Path(path)
     if target.suffix == "":
-        target = target.with_suffix(".zip")  # as SB3's save names it
-    if str(path) == "" or target.is_dir():
-        raise ValueError(f"{algo_name}.save: {str(path)!r} is a folder, not a file name; pass e.g. 'model.zip'.")
+        target = target.with_suffix(".zip")  # as SB3's save names it (an existing folder: SB3 saves to <path>_2)
     problem = unwritable_folder(target.parent)
     if problem:
         raise ValueError(f"{algo_name}.save: cannot write {str(target)!r}: {problem}; save to a folder you can write.")

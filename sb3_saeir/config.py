@@ -10,12 +10,16 @@ algorithm class.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import inspect
 import os
 import re
+import sys
 import types
 import typing
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +30,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
+from sb3_saeir.common.utils import check_seed, unwritable_folder
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
@@ -151,6 +156,26 @@ def check_range(option: str, value: int | None, low: int, meaning: str = "") -> 
         raise ConfigError(f"{option} must be >= {low}{meaning}, got {value}.")
 
 
+# The --seed of the training commands that draws a seed (rl-zoo's convention)
+DRAW_SEED = -1
+
+
+def check_seed_option(seed: int, option: str = "--seed", draw: int | None = None) -> None:
+    """Refuse a ``--seed`` outside ``0 .. 2**32 - 1`` (and other than ``draw``, the value that draws one) with the
+    check of the Python API (:func:`~sb3_saeir.common.utils.check_seed`).
+
+    :param seed: the option's value
+    :param option: the option's name
+    :param draw: the value that draws a seed (``None``: none does)
+    """
+    if draw is not None and seed == draw:
+        return
+    try:
+        check_seed("", seed, option, hint="" if draw is None else f" (or {draw} to draw one)")
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
+
+
 def check_device(device: str) -> None:
     """Refuse a ``--device`` torch does not know, or ``cuda`` on a machine without CUDA (SB3 would fall back to the
     CPU without a word)."""
@@ -179,11 +204,9 @@ def check_folder(option: str, folder: str | os.PathLike | None) -> None:
     path = Path(folder)
     if path.exists() and not path.is_dir():
         raise ConfigError(f"{option} {path} is a file, not a folder.")
-    existing = next(parent for parent in (path, *path.parents) if parent.exists() or parent == Path(parent.anchor))
-    if not existing.is_dir():
-        raise ConfigError(f"{option} {path}: {existing} is a file, not a folder.")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ConfigError(f"{option} {path}: {existing} is not writable.")
+    problem = unwritable_folder(path)
+    if problem:
+        raise ConfigError(f"{option} {path}: {problem}; give a folder you can write.")
 
 
 def check_output_file(option: str, file: str | os.PathLike | None) -> None:
@@ -201,7 +224,7 @@ def check_output_file(option: str, file: str | os.PathLike | None) -> None:
     parent = path.parent
     if not parent.is_dir():
         raise ConfigError(f"{option} {path}: the folder {parent} does not exist.")
-    if not os.access(parent, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    if unwritable_folder(parent) or (path.exists() and not os.access(path, os.W_OK)):
         raise ConfigError(f"{option} {path} is not writable.")
 
 
@@ -285,8 +308,7 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
         else:
             continue
         raise ConfigError(f"hyperparameter {key}={value!r} has type {type(value).__name__}, expected {expected}.")
-    if "n_envs" in overrides and (not isinstance(overrides["n_envs"], int) or overrides["n_envs"] < 1):
-        raise ConfigError(f"n_envs (number of games) must be a positive integer, got {overrides['n_envs']!r}.")
+    check_n_envs(overrides.get("n_envs", hyperparams.get("n_envs")))
     n_timesteps = overrides.get("n_timesteps", hyperparams.get("n_timesteps"))
     if n_timesteps is not None and (
         isinstance(n_timesteps, bool) or not isinstance(n_timesteps, (int, float)) or n_timesteps < 1
@@ -295,6 +317,38 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
     num_cpus = overrides.get("num_cpus", hyperparams.get("num_cpus", 0))
     if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 0:
         raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
+
+
+def check_n_envs(n_envs: Any) -> None:
+    """Refuse an ``n_envs`` (number of games) that is not a positive integer, from a config file or ``-params``
+    (``None``: not given, accepted).
+
+    :param n_envs: the value
+    :raises ~sb3_saeir.config.ConfigError: naming ``n_envs``
+    """
+    if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1):
+        raise ConfigError(f"n_envs (number of games) must be a positive integer, got {n_envs!r}; e.g. n_envs: 8.")
+
+
+@contextlib.contextmanager
+def one_line_warnings(prog: str) -> Iterator[None]:
+    """While a command runs, show each warning as one ``<prog>: warning: <message>`` line on stderr (Python's default
+    adds the file, the line number and the source line).
+
+    :param prog: the command, e.g. ``sb3_saeir.train``
+    """
+    previous = warnings.showwarning
+
+    def show(
+        message: Warning | str, category: type[Warning], filename: str, lineno: int, file: Any = None, line: Any = None
+    ) -> None:
+        print(f"{prog}: warning: {message}", file=sys.stderr if file is None else file)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = previous
 
 
 def config_dir() -> Path:

@@ -27,6 +27,7 @@ from sb3_saeir.config import (
     OneLineParser,
     check_output_file,
     check_range,
+    check_seed_option,
     count,
     load_hyperparams,
     load_yaml,
@@ -123,6 +124,7 @@ def check_enjoy_arguments(args: argparse.Namespace) -> tuple[Path, dict[str, Any
     check_range("-n/--n-episodes", args.n_episodes, 1)
     check_range("--n-games", args.n_games, 1)
     check_range("--gif-episodes", args.gif_episodes, 1)
+    check_seed_option(args.seed)
     check_output_file("--gif", args.gif)
     if args.gif is not None:
         require_extra("imageio.v2", "plots", "--gif")
@@ -165,6 +167,9 @@ def main(argv: list[str] | None = None) -> int:
         env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed, **env_kwargs)
     except (FileNotFoundError, ConfigError, MissingExtraError) as error:
         print(f"sb3_saeir.enjoy: error: {error}", file=sys.stderr)
+        return 2
+    except MemoryError as error:  # the env's estimate for a size that cannot fit
+        print(f"sb3_saeir.enjoy: error: --n-games {args.n_games}: {error}", file=sys.stderr)
         return 2
     except (ValueError, TypeError, KeyError, zipfile.BadZipFile) as error:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error

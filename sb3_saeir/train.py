@@ -64,15 +64,18 @@ from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import (
     ALGOS,
     CONFIG_KEYS,
+    DRAW_SEED,
     ConfigError,
     OneLineParser,
     check_device,
     check_folder,
     check_hyperparams,
     check_range,
+    check_seed_option,
     config_path,
     count,
     load_hyperparams,
+    one_line_warnings,
     parse_params,
     valid_keys,
 )
@@ -130,6 +133,7 @@ def check_arguments(args: argparse.Namespace) -> None:
     check_range("--eval-episodes", args.eval_episodes, 1)
     check_range("--save-freq", args.save_freq, -1, " (-1 or 0: never)")
     check_range("--num-threads", args.num_threads, 0, " (0: the free cores)")
+    check_seed_option(args.seed, draw=DRAW_SEED)
     check_folder("-f/--log-folder", args.log_folder)
     check_folder("-tb/--tensorboard-log", args.tensorboard_log)
     check_device(args.device)
@@ -531,7 +535,7 @@ def train(args: argparse.Namespace) -> Path:
     if resume is not None:
         seed, folder = resume.seed, nullcontext(resume.folder)
     else:
-        seed = int(np.random.randint(2**31 - 1)) if args.seed < 0 else args.seed
+        seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else args.seed
         folder = claimed_run_folder(args.log_folder, args.algo, args.task)
     with folder as save_path:  # a new run's folder is removed again if the set-up fails
         set_random_seed(seed)
@@ -679,7 +683,7 @@ def make_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--algo", required=True, help=f"method: {', '.join(sorted(ALGOS))}")
     parser.add_argument("--task", "--env", dest="task", default="cn-sparse-n3", help=f"task id: {', '.join(list_tasks())}")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (-1: draw one)")
+    parser.add_argument("--seed", type=int, default=0, help=f"random seed, 0 .. 2**32 - 1 ({DRAW_SEED}: draw one)")
     parser.add_argument("-conf", "--conf-file", default=None, help="zoo-format YAML (default: zoo_configs/<algo>.yml)")
     parser.add_argument("-n", "--n-timesteps", type=count, default=None, help="override n_timesteps (agent-steps)")
     parser.add_argument("--n-games", type=count, default=None, help="override n_envs (number of games)")
@@ -734,20 +738,25 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = make_parser().parse_args(argv)
     try:
-        if args.optimize:
-            require_extra("optuna", "zoo", "--optimize")
-            from sb3_saeir.hyperparams_opt import optimize
-
-            check_arguments(args)
-            optimize(args, resolve_hyperparams(args))
-        else:
-            train(args)
+        with one_line_warnings("sb3_saeir.train"):
+            return _main(args)
     except (ConfigError, FileExistsError, MissingExtraError) as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 2
     except RunStoppedError as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 1
+
+
+def _main(args: argparse.Namespace) -> int:
+    if args.optimize:
+        require_extra("optuna", "zoo", "--optimize")
+        from sb3_saeir.hyperparams_opt import optimize
+
+        check_arguments(args)
+        optimize(args, resolve_hyperparams(args))
+    else:
+        train(args)
     return 0
 
 

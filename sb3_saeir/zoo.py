@@ -69,7 +69,8 @@ Pitfalls (rl-zoo3 2.9.2):
   ``--n-envs 1`` it crashes (``ValueError: The truth value of an array ... is ambiguous``) because it assumes one slot
   per env; it prints no episode statistics for ``--n-envs`` >= 2. The launcher therefore replays at least 2 games
   (``--n-envs 1`` becomes 2, with a note) and prints per-game statistics itself at the end; ``--reward-log DIR``
-  writes ``DIR/games.monitor.csv``. ``-n`` counts game steps (vec steps: each is one step of every game). Plain
+  writes ``DIR/games.monitor.csv``. The tasks have no ``"human"`` render mode, so the launcher adds ``--no-render``
+  (with a note). ``-n`` counts game steps (vec steps: each is one step of every game). Plain
   ``rl_zoo3.enjoy`` builds the game envs of ``--n-envs`` >= 2 in subprocesses (slow start, no monitor file); the
   launcher builds them in-process (``ExperimentManager.default_vec_env_cls = DummyVecEnv``). Recurrent actors work:
   enjoy passes the GRU states back to ``predict``.
@@ -85,6 +86,7 @@ import os
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -436,6 +438,35 @@ def prepare_train_args(argv: Sequence[str]) -> list[str]:
     return new_argv
 
 
+def check_train_args(argv: Sequence[str]) -> None:
+    """The checks of ``python -m sb3_saeir.train`` on the rl-zoo3 ``train`` arguments of a package task (made by
+    :func:`prepare_train_args`), before rl-zoo3 creates anything: the log and tensorboard folders can be written, and
+    ``n_envs`` (config entry or ``-params``) is a positive integer (rl-zoo3 fails on it after creating the run folder).
+
+    :param argv: the arguments for ``rl_zoo3.train.train()``
+    :raises ~sb3_saeir.config.ConfigError: naming the first bad option
+    """
+    from sb3_saeir.config import check_folder, check_n_envs, parse_params
+
+    parser = _mini_parser(
+        [
+            (["--env"], {"default": "CartPole-v1"}),
+            (["-conf", "--conf-file"], {"default": None}),
+            (["-f", "--log-folder"], {"default": "logs"}),
+            (["-tb", "--tensorboard-log"], {"default": ""}),
+            (["-params", "--hyperparams"], {"nargs": "+", "action": "append", "default": []}),
+        ]
+    )
+    args = parser.parse_known_args(list(argv))[0]
+    if not is_package_env(args.env):
+        return
+    check_folder("-f/--log-folder", args.log_folder)
+    check_folder("-tb/--tensorboard-log", args.tensorboard_log or None)
+    items = [item for group in args.hyperparams for item in group if item.split(":")[0] == "n_envs"]
+    entry = _load_zoo_entry(args.conf_file, args.env) if args.conf_file is not None else None
+    check_n_envs(parse_params(items[-1:])["n_envs"] if items else (entry or {}).get("n_envs"))
+
+
 def parse_enjoy_args(argv: Sequence[str]) -> tuple[list[str], argparse.Namespace]:
     """rl-zoo3 ``enjoy`` arguments for a package task (:func:`prepare_enjoy_args`) and the options the launcher reads
     itself (``env``, ``verbose``), from one parse.
@@ -462,12 +493,19 @@ def parse_enjoy_args(argv: Sequence[str]) -> tuple[list[str], argparse.Namespace
             "when --n-envs is 1; a game has one slot per agent)."
         )
         n_envs = 2
+    if "--no-render" not in rest:
+        print(
+            "sb3_saeir.zoo: replaying without a window (--no-render added): the package's tasks have no 'human' "
+            "render mode (python -m sb3_saeir.enjoy --gif writes a GIF of a game)."
+        )
+        rest.append("--no-render")
     return [*rest, "--env", args.env, "--n-envs", str(n_envs)], args
 
 
 def prepare_enjoy_args(argv: Sequence[str]) -> list[str]:
     """rl-zoo3 ``enjoy`` arguments for a package task: at least 2 games (``rl_zoo3.enjoy`` crashes with ``--n-envs 1``
-    on a multi-agent env). Arguments for other envs are returned unchanged."""
+    on a multi-agent env) and ``--no-render`` (the tasks have no ``"human"`` render mode, which rl-zoo3 asks for
+    otherwise). Arguments for other envs are returned unchanged."""
     return parse_enjoy_args(argv)[0]
 
 
@@ -513,13 +551,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MissingExtraError as error:
         print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
         return 2
+    from sb3_saeir.config import one_line_warnings
+
     register_algorithms()
     register_gym_envs()
     saved_argv = sys.argv
     try:
-        if command == "train":
-            return _run_train(rest)
-        return _run_enjoy(rest)
+        with one_line_warnings("sb3_saeir.zoo"):
+            if command == "train":
+                return _run_train(rest)
+            return _run_enjoy(rest)
     finally:
         sys.argv = saved_argv
 
@@ -535,12 +576,24 @@ def _run_train(argv: Sequence[str]) -> int:
 
     try:
         new_argv = prepare_train_args(argv)
+        check_train_args(new_argv)
     except ConfigError as error:
         print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
         return 2
     sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
     package_env = is_package_env(_mini_parser([(["--env"], {"default": "CartPole-v1"})]).parse_known_args(new_argv)[0].env)
     original_learn = ExperimentManager.learn
+    original_setup = ExperimentManager.setup_experiment
+
+    def setup_or_clean_up(manager: Any) -> Any:
+        """rl-zoo3's setup (config, env, model); a failure removes the folders it created and becomes one line."""
+        folders = [Path(manager.log_path).parent, Path(manager.log_path), Path(manager.save_path)]
+        created = [folder for folder in folders if not folder.exists()]
+        try:
+            return original_setup(manager)
+        except Exception as error:
+            remove_created_folders(created)
+            raise ConfigError(f"cannot set up {manager.algo} on {manager.env_name}: {one_line(error)}") from error
 
     def learn_with_eta(manager: Any, model: Any) -> None:
         """rl-zoo3's learn, with the ETA line ``sb3_saeir.train`` prints (a package task's budget is agent-steps)."""
@@ -553,7 +606,10 @@ def _run_train(argv: Sequence[str]) -> int:
     try:
         with mock.patch.object(yaml, "safe_load", load_yaml):
             if package_env:
-                with mock.patch.object(ExperimentManager, "learn", learn_with_eta):
+                with (
+                    mock.patch.object(ExperimentManager, "learn", learn_with_eta),
+                    mock.patch.object(ExperimentManager, "setup_experiment", setup_or_clean_up),
+                ):
                     train()
             else:
                 train()
@@ -563,11 +619,40 @@ def _run_train(argv: Sequence[str]) -> int:
     return 0
 
 
+def one_line(error: BaseException) -> str:
+    """An error as one line: our messages as they are, another library's with its type (first line only)."""
+    from sb3_saeir.config import ConfigError
+
+    text = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
+    first = str(text).strip().splitlines()[0] if str(text).strip() else "(no message)"
+    return first if isinstance(error, ConfigError) else f"{type(error).__name__}: {first}"
+
+
+def remove_created_folders(created: Sequence[Path]) -> None:
+    """Remove the folders a failed command created (listed outermost first): the innermost with what it holds, the
+    others only when they are left empty."""
+    import shutil
+
+    for folder in reversed(created):
+        if folder == created[-1]:
+            shutil.rmtree(folder, ignore_errors=True)
+        elif folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
+
+
 def _run_enjoy(argv: Sequence[str]) -> int:
     from rl_zoo3.enjoy import enjoy
     from rl_zoo3.exp_manager import ExperimentManager
 
+    from sb3_saeir.config import ConfigError, check_seed_option
+
     new_argv, options = parse_enjoy_args(argv)
+    if is_package_env(options.env):
+        try:
+            check_seed_option(_mini_parser([(["--seed"], {"type": int, "default": 0})]).parse_known_args(new_argv)[0].seed)
+        except ConfigError as error:
+            print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+            return 2
     # rl_zoo3.enjoy builds its envs with this class attribute (no option for it): the game envs are only constructed,
     # so build them in this process, not in SubprocVecEnv workers; restored afterwards
     saved_vec_env_cls = ExperimentManager.default_vec_env_cls
@@ -579,6 +664,12 @@ def _run_enjoy(argv: Sequence[str]) -> int:
             enjoy()
         if options.verbose > 0 and session.monitors:
             _print_enjoy_summary(session.monitors)
+    except (AssertionError, ValueError, TypeError, KeyError, OSError, MemoryError) as error:
+        if not is_package_env(options.env):
+            raise
+        # rl-zoo3's own checks (a missing -f folder or --exp-id run are assertions), a model or env that cannot load
+        print(f"sb3_saeir.zoo: error: enjoy: {one_line(error)}", file=sys.stderr)
+        return 2
     finally:
         ExperimentManager.default_vec_env_cls = saved_vec_env_cls
     return 0

@@ -272,3 +272,139 @@ def test_cuda_without_cuda_warns(env, tiny_kwargs, monkeypatch):
         SAEIR_PPO("MSHGPolicy", env, device="cuda", **tiny_kwargs)
     messages = [str(w.message) for w in caught if "CUDA is not available" in str(w.message)]
     assert len(messages) == 1 and "\n" not in messages[0] and "device='cuda'" in messages[0]
+
+
+# ------------------------------------------------------------------------------------------------ issue 35
+BAD_HIDDEN_SIZES = [0, -4, 2.5, "8", None, True]
+
+
+@pytest.mark.parametrize("policy", ["MSHGPolicy", "MAPPOPolicy"])
+@pytest.mark.parametrize("hidden_size", BAD_HIDDEN_SIZES, ids=[repr(value) for value in BAD_HIDDEN_SIZES])
+def test_bad_hidden_size(env, policy, hidden_size):
+    """Torch's own messages (``input_size must be greater than zero``, a tensor size) named no argument."""
+    with pytest.raises(ValueError) as error:
+        MAPPO(policy, env, n_steps=10, policy_kwargs={"hidden_size": hidden_size})
+    one_line(error, f"{policy}: hidden_size must be a positive integer", f"got {hidden_size!r}")
+
+
+def test_numpy_integer_hidden_size_is_accepted(env):
+    model = MAPPO("MAPPOPolicy", env, n_steps=10, policy_kwargs={"hidden_size": np.int64(8)})
+    assert model.policy.hidden_size == 8 and type(model.policy.hidden_size) is int
+
+
+BAD_SEEDS = ["abc", 2.5, -1, 2**32, True]
+
+
+@pytest.mark.parametrize("where", ["constructor", "set_random_seed", "load"])
+@pytest.mark.parametrize("seed", BAD_SEEDS, ids=[repr(seed) for seed in BAD_SEEDS])
+def test_bad_seed(env, tiny_kwargs, tmp_path, where, seed):
+    """NumPy's and Python's messages (a dtype cast, ``Seed must be between 0 and 2**32 - 1``) did not name ``seed``;
+    ``True`` was taken as 1."""
+    model = None if where == "constructor" else MAPPO("MAPPOPolicy", env, **tiny_kwargs)
+    if where == "load":
+        model.save(tmp_path / "model.zip")
+    with pytest.raises(ValueError) as error:
+        if where == "constructor":
+            MAPPO("MAPPOPolicy", env, seed=seed, **tiny_kwargs)
+        elif where == "set_random_seed":
+            model.set_random_seed(seed)
+        else:
+            MAPPO.load(tmp_path / "model.zip", env=env, seed=seed)
+    one_line(error, f"MAPPO: seed={seed!r} is not a seed")
+
+
+@pytest.mark.parametrize("seed", [np.int64(3), np.int32(3), np.uint32(3)], ids=["int64", "int32", "uint32"])
+def test_numpy_integer_seed_is_accepted(tiny_kwargs, tmp_path, seed):
+    """Python's ``random.seed`` refused NumPy integers (``The only supported seed types are...``)."""
+
+    def first_actions(model):
+        model.env.seed(0)
+        return model.predict(model.env.reset(), deterministic=False)[0]
+
+    runs = []
+    for value in (3, seed):
+        env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
+        runs.append(first_actions(MAPPO("MAPPOPolicy", env, seed=value, **tiny_kwargs)))
+    np.testing.assert_array_equal(runs[1], runs[0])
+    model = MAPPO("MAPPOPolicy", make_multiagent_vec_env("cn-sparse-n3", n_games=2), **tiny_kwargs)
+    model.set_random_seed(seed)
+    model.save(tmp_path / "model.zip")
+    assert MAPPO.load(tmp_path / "model.zip", env=model.env, seed=seed).seed == 3
+
+
+BAD_DETERMINISTIC = ["no", "False", 1, None]
+
+
+@pytest.mark.parametrize("caller", ["model", "policy"])
+@pytest.mark.parametrize("deterministic", BAD_DETERMINISTIC, ids=[repr(value) for value in BAD_DETERMINISTIC])
+def test_predict_deterministic_must_be_a_bool(model, caller, deterministic):
+    """``"no"`` is truthy: it was accepted and acted greedily."""
+    predictor = model if caller == "model" else model.policy
+    with pytest.raises(ValueError) as error:
+        predictor.predict(np.zeros((6, 18)), deterministic=deterministic)
+    one_line(error, "predict: deterministic must be True or False")
+
+
+LOAD_SKIPPED_CHECKS = [
+    ({"batch_size": 7}, "batch_size=7 cannot be formed from whole"),
+    ({"batch_size": 2.5}, "batch_size=2.5 cannot be formed from whole"),
+    ({"n_minibatches": 99}, "n_minibatches=99 must be between 1 and"),
+    ({"n_steps": 7, "batch_size": 60}, "batch_size=60 cannot be formed from whole"),
+    ({"value_loss": "l1"}, "value_loss must be 'huber' or 'mse'"),
+    ({"double_buffered": "yes"}, "double_buffered must be True, False or 'auto'"),
+    ({"intrinsic_reward": "curiosity"}, "Unknown intrinsic_reward 'curiosity'"),
+    ({"intrinsic_kwargs": {"varaint": "paper"}}, "unknown intrinsic_kwargs key 'varaint'"),
+]
+
+
+@pytest.mark.parametrize("overrides, message", LOAD_SKIPPED_CHECKS, ids=[m[:40] for _, m in LOAD_SKIPPED_CHECKS])
+def test_load_overrides_get_the_constructor_checks(env, tiny_kwargs, tmp_path, overrides, message):
+    """These overrides were set on the loaded model without a check (``batch_size`` was even ignored)."""
+    path = tmp_path / "model.zip"
+    SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).save(path)
+    before = path.read_bytes()
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO.load(path, env=env, **overrides)
+    one_line(error, message)
+    assert path.read_bytes() == before
+
+
+def test_load_batch_size_override_is_applied(env, tiny_kwargs, tmp_path):
+    """A positive control: a valid batch_size override now sets the minibatch count (before: ignored)."""
+    path = tmp_path / "model.zip"
+    SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).save(path)
+    assert SAEIR_PPO.load(path, env=env, batch_size=30).n_minibatches == 2
+
+
+def _unwritable_paths(tmp_path):
+    (tmp_path / "a_file").write_text("not a folder")
+    return {
+        "/proc": ("/proc/model.zip", "no file can be created in /proc"),
+        "/proc/sub": ("/proc/sub/model.zip", "no file can be created in /proc"),
+        "under a file": (str(tmp_path / "a_file" / "model.zip"), "a_file is a file, not a folder"),
+        "empty": ("", "'' is not a file name"),
+    }
+
+
+@pytest.mark.parametrize("case", ["/proc", "/proc/sub", "under a file", "empty"])
+def test_save_to_a_path_that_cannot_be_written(model, tmp_path, case):
+    """``/proc/model.zip`` ended in a RecursionError in SB3's ``open_path``; the others in the OS's message."""
+    path, message = _unwritable_paths(tmp_path)[case]
+    before = {p.name: p.is_dir() or p.read_text() for p in tmp_path.iterdir()}
+    with pytest.raises(ValueError) as error:
+        model.save(path)
+    one_line(error, "SAEIR_PPO.save", message)
+    assert {p.name: p.is_dir() or p.read_text() for p in tmp_path.iterdir()} == before
+
+
+@pytest.mark.parametrize("scales", [None, ("team", "group")], ids=["default", "explicit"])
+def test_one_agent_warns_that_the_group_scale_is_degenerate(tiny_kwargs, scales):
+    one = make_multiagent_vec_env("cn-sparse-n3", n_games=2, N=1, seed=0)
+    policy_kwargs = {"hidden_size": 8, **({} if scales is None else {"scales": scales})}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        SAEIR_PPO("MSHGPolicy", one, **{**tiny_kwargs, "policy_kwargs": policy_kwargs})
+    ours = [str(w.message) for w in caught if "group scale" in str(w.message)]
+    assert len(ours) == 1 and "\n" not in ours[0] and "degenerate with 1 agent per game" in ours[0], ours
+    assert "scales=('team',)" in ours[0]
+    one.close()

@@ -325,3 +325,130 @@ def test_zoo_train_prints_the_eta_line_of_train(root, capsys):
     assert zoo_main([*argv, "--num-threads", "1", "--seed", "0", "--eval-freq", "-1"]) == 0
     out = capsys.readouterr().out
     assert "First rollout and update:" in out and "the 120 agent-steps take about" in out, out[-2000:]
+
+
+# ------------------------------------------------------------------------------------------------ issue 35
+ZOO_TRAIN = ["train", "--algo", "mappo", "--env", TASK, "--device", "cpu", "--num-threads", "1", "--eval-freq", "-1"]
+BAD_N_ENVS = [2.5, "2", "abc", 0, True]
+
+
+def zoo_conf(root: Path, **changes) -> str:
+    """A small rl-zoo3 config of mappo on ``TASK`` with ``changes``."""
+    entry = {"n_envs": 2, "n_timesteps": 60, "n_steps": 10, "policy": "MAPPOPolicy", **changes}
+    path = root / "zoo.yml"
+    path.write_text(yaml.safe_dump({TASK: entry}))
+    return str(path)
+
+
+@pytest.mark.parametrize("value", BAD_N_ENVS, ids=[repr(value) for value in BAD_N_ENVS])
+def test_n_envs_of_the_config_file_is_checked(root, capsys, value):
+    """A float or a string ``n_envs`` in the YAML ended in a traceback (rl-zoo3's after creating the run folder)."""
+    message = f"n_envs (number of games) must be a positive integer, got {value!r}"
+    argv = ["--algo", "mappo", "-n", "100", "--eval-freq", "0", "--verbose", "0", "-f", "logs"]
+    assert_refused(train_main, [*argv, "-conf", conf_with(root, "mappo", n_envs=value)], message, capsys, root)
+    assert_refused(zoo_main, [*ZOO_TRAIN, "-f", "logs", "-conf", zoo_conf(root, n_envs=value)], message, capsys, root)
+
+
+BAD_HIDDEN_SIZES = ["0", "-4", "2.5", "'8'"]
+
+
+@pytest.mark.parametrize("value", BAD_HIDDEN_SIZES)
+def test_hidden_size_is_checked_on_the_command_lines(root, capsys, value):
+    """Torch's messages named no argument; rl-zoo3 also left an empty run folder behind."""
+    params = ["-params", f"policy_kwargs:dict(hidden_size={value})"]
+    message = "MAPPOPolicy: hidden_size must be a positive integer"
+    argv = ["--algo", "mappo", "--n-games", "2", "-n", "100", "--eval-freq", "0", "--verbose", "0", "-f", "logs"]
+    assert_refused(train_main, [*argv, *params], message, capsys, root)
+    assert_refused(zoo_main, [*ZOO_TRAIN, "-f", "zoo_logs", "-conf", zoo_conf(root), *params], message, capsys, root)
+
+
+@pytest.mark.parametrize("folder", ["/proc/logs", "/sys/logs"])
+def test_log_folder_that_cannot_be_created(root, capsys, folder):
+    """A folder the OS refuses although the permission bits allow it (root on /proc, /sys) ended in a traceback."""
+    message = f"-f/--log-folder {folder}: "  # /proc: no file can be created in /proc; /sys: /sys is not writable
+    assert_refused(train_main, [*TRAIN, "-f", folder], message, capsys, root)
+    assert_refused(zoo_main, [*ZOO_TRAIN, "-f", folder, "-conf", zoo_conf(root)], message, capsys, root)
+
+
+def test_output_files_and_folders_the_os_refuses(root, models, capsys):
+    """``--gif`` and ``--out`` under /proc passed the permission check as root and failed at the end (a traceback)."""
+    enjoy = ["--algo", "saeir_ppo", "--model", str(models / "saeir.zip"), "-n", "1", "--n-games", "1"]
+    assert_refused(enjoy_main, [*enjoy, "--gif", "/proc/replay.gif"], "--gif /proc/replay.gif is not writable", capsys, root)
+    bench = ["--algos", "mappo", "--seeds", "1", "-n", "100", "--eval-freq", "50", "--n-games", "2"]
+    assert_refused(
+        benchmark_main, [*bench, "--out", "/proc/bench"], "--out /proc/bench: no file can be created in /proc", capsys, root
+    )
+
+
+@pytest.mark.parametrize("seed", ["-5", str(2**32)])
+def test_seed_options_are_checked(root, models, capsys, seed):
+    """``train --seed -5`` drew a seed as -1 does; enjoy's negative seeds ended in NumPy's message (a traceback)."""
+    message = f"--seed={seed} is not a seed"
+    assert_refused(train_main, [*TRAIN, "-f", "logs", "--seed", seed], message, capsys, root)
+    enjoy = ["--algo", "saeir_ppo", "--model", str(models / "saeir.zip"), "-n", "1", "--n-games", "1", "--seed", seed]
+    assert_refused(enjoy_main, enjoy, message, capsys, root)
+    zoo_enjoy = ["enjoy", "--algo", "mappo", "--env", TASK, "-f", "logs", "--no-render", "-n", "10", "--seed", seed]
+    assert_refused(zoo_main, zoo_enjoy, message, capsys, root)
+
+
+def test_enjoy_n_games_too_large(root, models, capsys):
+    """The memory estimate was right but arrived as a MemoryError traceback."""
+    argv = ["--algo", "saeir_ppo", "--model", str(models / "saeir.zip"), "-n", "1", "--n-games", "1e9"]
+    assert_refused(enjoy_main, argv, "--n-games 1000000000: n_games=1000000000 games of N=3 agents need", capsys, root)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["-f", "nothere"], "enjoy: AssertionError: The nothere/mappo folder was not found"),
+        (["-f", "logs", "--exp-id", "7"], "enjoy: AssertionError: The logs/mappo/cn-sparse-n3_7 folder was not found"),
+    ],
+)
+def test_zoo_enjoy_errors_of_rl_zoo3_are_one_line(root, capsys, extra, message):
+    (root / "logs" / "mappo").mkdir()
+    argv = ["enjoy", "--algo", "mappo", "--env", TASK, "--no-render", "-n", "10", *extra]
+    assert_refused(zoo_main, argv, message, capsys, root)
+
+
+def _progress_without_saeir_logs(root: Path) -> str:
+    run = root / "mappo_run"
+    run.mkdir()
+    (run / "progress.csv").write_text("time/total_timesteps,rollout/ep_rew_mean\n100,0.5\n")
+    return str(run)
+
+
+@pytest.mark.parametrize(
+    "folder, message",
+    [
+        (lambda root: "nothere", "--entropy-plot nothere is not a folder"),
+        (lambda root: "logs", "--entropy-plot logs has no progress.csv"),
+        (_progress_without_saeir_logs, "has no SAEIR logs (rollout/intrinsic_reward_mean)"),
+    ],
+    ids=["missing", "no progress.csv", "not SAEIR"],
+)
+def test_entropy_plot_of_a_folder_that_is_no_saeir_run(root, capsys, folder, message):
+    """A missing folder was reported as a run without SAEIR logs, in a traceback."""
+    assert_refused(benchmark_main, ["--entropy-plot", folder(root)], message, capsys, root)
+
+
+def test_more_env_workers_than_cores_warns_in_one_line(root, capsys, monkeypatch):
+    import sb3_saeir.common.vec_env as vec_env_module
+
+    monkeypatch.setattr(vec_env_module, "usable_cores", lambda: 1)
+    argv = ["--algo", "mappo", "--n-games", "2", "-n", "60", "--eval-freq", "0", "--verbose", "0", "-f", "logs"]
+    assert train_main([*argv, "--num-cpus", "2", "-params", "n_steps:10"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert warnings == [
+        "sb3_saeir.train: warning: make_multiagent_vec_env: num_cpus=2 starts 2 env worker processes, but this machine "
+        "gives this process 1 core(s): the workers take turns and step slower than fewer would; pass num_cpus=0 "
+        "(every game in this process)."
+    ]
+
+
+def test_zoo_enjoy_replays_without_a_window_by_default(capsys):
+    """rl_zoo3.enjoy asks for render_mode='human', which the tasks do not have: it ended in a traceback."""
+    from sb3_saeir.zoo import prepare_enjoy_args
+
+    assert "--no-render" in prepare_enjoy_args(["--algo", "mappo", "--env", TASK, "-n", "10"])
+    assert "--no-render added" in capsys.readouterr().out
+    assert prepare_enjoy_args(["--env", "CartPole-v1"]) == ["--env", "CartPole-v1"]  # other envs: untouched

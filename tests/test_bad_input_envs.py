@@ -6,65 +6,12 @@ import warnings
 import numpy as np
 import pytest
 from gymnasium import spaces
-from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir import make_multiagent_vec_env
 from sb3_saeir.common.vec_env import NonFiniteValueError
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from sb3_saeir.envs.navigation_vec_env import NavigationVecEnv
-
-
-class FaultyEnv(ParallelEnv):
-    """2 agents, 4 steps; ``fault`` picks what goes wrong at step 2 (or at the second reset)."""
-
-    metadata = {"name": "faulty_v0"}  # noqa: RUF012
-
-    def __init__(self, fault="none", action_space=None):
-        self.possible_agents = ["agent_0", "agent_1"]
-        self.agents = []
-        self.fault = fault
-        self._action_space = action_space or spaces.Discrete(2)
-        self._t = 0
-        self._resets = 0
-
-    def observation_space(self, agent):
-        return spaces.Box(-1.0, 1.0, (2,), np.float32)
-
-    def action_space(self, agent):
-        return self._action_space
-
-    def _obs(self):
-        obs = {a: np.zeros(2, np.float32) for a in self.possible_agents}
-        if self._t == 2 and self.fault == "shape_changes":
-            obs["agent_1"] = np.zeros(3, np.float32)
-        if self._t == 2 and self.fault == "missing_obs":
-            del obs["agent_1"]
-        return obs
-
-    def reset(self, seed=None, options=None):
-        self._resets += 1
-        self._t = 0
-        if self.fault == "renamed" and self._resets > 1:
-            self.possible_agents = ["player_0", "player_1"]
-        if self.fault == "declared_shape":
-            self.agents = list(self.possible_agents)
-            return {a: np.zeros(5, np.float32) for a in self.agents}, {a: {} for a in self.agents}
-        self.agents = list(self.possible_agents)
-        return self._obs(), {a: {} for a in self.agents}
-
-    def step(self, actions):
-        self._t += 1
-        reward = 1e30 if self.fault == "huge_reward" else 0.0
-        rewards = dict.fromkeys(self.agents, reward)
-        truncations = dict.fromkeys(self.agents, self._t >= 4)
-        terminations = dict.fromkeys(self.agents, False)
-        if self.fault == "one_terminated" and self._t == 2:
-            terminations["agent_0"] = True
-        infos = {a: {} for a in self.agents}
-        obs = self._obs()
-        if self._t >= 4:
-            self.agents = []
-        return obs, rewards, terminations, truncations, infos
+from tests.toy_envs import FaultyEnv, ReorderedMeetEnv, ToyMeetEnv
 
 
 def _one_line(excinfo, name):
@@ -225,3 +172,159 @@ def test_discrete_start_is_refused():
         make_multiagent_vec_env(lambda: FaultyEnv(action_space=spaces.Discrete(3, start=1)), n_games=2)
     message = _one_line(excinfo, "Discrete(3")
     assert "start" in message
+
+
+# ----------------------------------------------------------------------------- env faults named alike on both paths
+ENV_FAULTS = [
+    ("missing_reward", "no reward"),
+    ("none_reward", "the reward is NoneType None, not a number"),
+    ("string_reward", "the reward is str '1.0', not a number"),
+    ("string_obs", "the observation is ndarray array(['0.5', '0.25']"),
+    ("object_obs", "the observation is list [Decimal('0.5'), Decimal('0.25')]"),
+    ("missing_obs", "no observation"),
+    ("shape_changes", "an observation of shape (3,)"),
+]
+
+
+def _fault_message(fault, num_cpus):
+    """The error of a :class:`FaultyEnv` fault in game 1 (of 2), with the games in this process or in 2 workers."""
+    env = make_multiagent_vec_env(lambda: FaultyEnv(fault, faulty_seeds={1}), n_games=2, seed=0, num_cpus=num_cpus)
+    try:
+        with pytest.raises(ValueError) as excinfo:
+            _run(env)
+    finally:
+        env.close()
+    return str(excinfo.value)
+
+
+@pytest.mark.parametrize("fault, words", ENV_FAULTS, ids=[fault for fault, _ in ENV_FAULTS])
+def test_env_fault_named_alike_in_process_and_in_workers(fault, words):
+    """A reward or observation the vec env cannot use is one line naming the env, the game, the agent and the step,
+    the same text with the games in this process and in worker processes (issue 35)."""
+    in_process = _fault_message(fault, num_cpus=0)
+    assert "\n" not in in_process, in_process
+    for word in ("faulty_v0: game 1, agent 1 (agent_1), step 2 of its episode", words):
+        assert word in in_process, in_process
+    assert _fault_message(fault, num_cpus=2) == in_process
+
+
+@pytest.mark.parametrize("num_cpus", [0, 2])
+def test_agents_listed_in_another_order_take_the_order_of_possible_agents(num_cpus):
+    """A game listing its agents in reverse order steps as the same game listing them in possible_agents order."""
+    reordered = make_multiagent_vec_env(ReorderedMeetEnv, n_games=2, seed=0, num_cpus=num_cpus)
+    reference = make_multiagent_vec_env(ToyMeetEnv, n_games=2, seed=0)
+    np.testing.assert_array_equal(reordered.reset(), reference.reset())
+    for actions in np.random.default_rng(0).integers(0, 3, size=(14, reference.num_envs)):  # past two episode ends
+        for got, expected in zip(reordered.step(actions)[:3], reference.step(actions)[:3]):
+            np.testing.assert_array_equal(got, expected)
+    reordered.close()
+    reference.close()
+
+
+# ----------------------------------------------------------------------------- seeds of the vec env
+SEED_TASKS = {"native": "cn-sparse-n3", "supersuit": ToyMeetEnv}
+BAD_SEEDS = ["abc", -1, 2.5, 2**32, True]
+
+
+@pytest.mark.parametrize("task", sorted(SEED_TASKS))
+@pytest.mark.parametrize("seed", BAD_SEEDS, ids=[repr(seed) for seed in BAD_SEEDS])
+def test_bad_seed_of_make_multiagent_vec_env(task, seed):
+    with pytest.raises(ValueError) as excinfo:
+        make_multiagent_vec_env(SEED_TASKS[task], n_games=2, seed=seed).reset()
+    _one_line(excinfo, f"make_multiagent_vec_env: seed={seed!r} is not a seed")
+
+
+@pytest.mark.parametrize("task", sorted(SEED_TASKS))
+@pytest.mark.parametrize("call", ["seed", "reset"])
+def test_bad_seed_of_a_built_env_leaves_it_usable(task, call):
+    env = make_multiagent_vec_env(SEED_TASKS[task], n_games=2, seed=0)
+    first = env.reset()
+    with pytest.raises(ValueError) as excinfo:
+        env.seed(-3) if call == "seed" else env.reset(seed=-3)
+    _one_line(excinfo, "seed=-3 is not a seed")
+    np.testing.assert_array_equal(env.reset(seed=0), first)
+    env.close()
+
+
+@pytest.mark.parametrize("task", sorted(SEED_TASKS))
+def test_numpy_integer_seed_of_the_vec_env(task):
+    """A positive control: NumPy integer seeds give the run of the same Python integer."""
+    expected = make_multiagent_vec_env(SEED_TASKS[task], n_games=2, seed=5).reset()
+    np.testing.assert_array_equal(make_multiagent_vec_env(SEED_TASKS[task], n_games=2, seed=np.int64(5)).reset(), expected)
+    np.testing.assert_array_equal(make_multiagent_vec_env(SEED_TASKS[task], n_games=2).reset(seed=np.uint32(5)), expected)
+
+
+# ----------------------------------------------------------------------------- worker processes
+@pytest.mark.parametrize("cores, num_cpus, n_games", [(1, 2, 2), (2, 4, 3)])
+def test_more_workers_than_cores_warns(monkeypatch, cores, num_cpus, n_games):
+    import sb3_saeir.common.vec_env as vec_env_module
+
+    monkeypatch.setattr(vec_env_module, "usable_cores", lambda: cores)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = make_multiagent_vec_env(ToyMeetEnv, n_games=n_games, num_cpus=num_cpus)
+    env.close()
+    ours = [str(w.message) for w in caught if "num_cpus=" in str(w.message)]
+    assert len(ours) == 1 and "\n" not in ours[0], ours
+    assert f"num_cpus={num_cpus} starts {min(num_cpus, n_games)} env worker processes" in ours[0]
+    assert f"{cores} core(s)" in ours[0]
+
+
+UNGUARDED_SCRIPTS = {
+    "forkserver": (
+        "from sb3_saeir import make_multiagent_vec_env\n"
+        "from tests.toy_envs import ToyMeetEnv\n"
+        "env = make_multiagent_vec_env(ToyMeetEnv, n_games=2, num_cpus=2)\n"
+    ),
+    "spawn": (
+        "from gymnasium import spaces\n"
+        "import numpy as np\n"
+        "from sb3_saeir.common.game_workers import GameWorkerPool\n"
+        "from tests.toy_envs import ToyMeetEnv\n"
+        "box = spaces.Box(0.0, 1.0, (2,), np.float32)\n"
+        "pool = GameWorkerPool(ToyMeetEnv, 2, 2, 3, box, spaces.Discrete(3), start_method='spawn')\n"
+    ),
+}
+
+
+@pytest.mark.parametrize("start_method", sorted(UNGUARDED_SCRIPTS))
+def test_script_without_main_guard_is_told_first_in_one_line(tmp_path, start_method):
+    """Workers import the main script again: without the guard, one line says so (before: one multiprocessing
+    traceback per worker, then the advice)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = tmp_path / "unguarded.py"
+    script.write_text(UNGUARDED_SCRIPTS[start_method])
+    root = str(Path(__file__).resolve().parent.parent)
+    environment = {**os.environ, "PYTHONPATH": root, "OMP_NUM_THREADS": "1"}
+    result = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, env=environment, cwd=tmp_path, timeout=300
+    )
+    assert result.returncode != 0
+    assert result.stderr.count("Traceback") == 1 and "bootstrapping phase" not in result.stderr, result.stderr[-3000:]
+    last = result.stderr.strip().splitlines()[-1]
+    assert str(script) in last and 'if __name__ == "__main__":' in last and start_method in last, last
+
+
+# ----------------------------------------------------------------------------- football options
+FOOTBALL_REWARDS = ["checkpoint", "scoring,goals", "", "checkpoints", 1]
+
+
+@pytest.mark.parametrize("build", ["class", "task"])
+@pytest.mark.parametrize("rewards", FOOTBALL_REWARDS, ids=[repr(r) for r in FOOTBALL_REWARDS])
+def test_football_rewards_checked_before_gfootball(monkeypatch, build, rewards):
+    """gfootball's own check is an AssertionError without a message; the value is checked first (no gfootball
+    needed: the import is replaced by a failure)."""
+    import sb3_saeir.envs.football as football
+
+    monkeypatch.setattr(football, "import_gfootball", lambda: pytest.fail("gfootball imported before the check"))
+    with pytest.raises(ValueError) as excinfo:
+        if build == "class":
+            football.FootballEnv(rewards=rewards)
+        else:
+            make_multiagent_vec_env("grf-3v1-keeper", n_games=1, rewards=rewards)
+    message = _one_line(excinfo, f"rewards={rewards!r}")
+    assert "'scoring,checkpoints'" in message

@@ -3,6 +3,7 @@
 import os
 import random
 import time
+from decimal import Decimal
 
 import numpy as np
 from gymnasium import spaces
@@ -144,3 +145,98 @@ class SlowMeetEnv(ToyMeetEnv):
     def step(self, actions):
         time.sleep(0.05)
         return super().step(actions)
+
+
+class FaultyEnv(ParallelEnv):
+    """2 agents, 4 steps; ``fault`` picks what goes wrong at step 2 (or at the second reset) of the games reset with a
+    seed in ``faulty_seeds`` (``None``: every game).
+
+    Faults: ``shape_changes``, ``missing_obs``, ``string_obs`` (an array of numeric strings), ``object_obs`` (a list
+    of ``Decimal``), ``missing_reward``, ``none_reward``, ``string_reward``, ``renamed`` (new agent names at the second
+    reset), ``declared_shape`` (every observation of another shape), ``huge_reward``, ``one_terminated``.
+    """
+
+    metadata = {"name": "faulty_v0"}  # noqa: RUF012
+
+    def __init__(self, fault="none", action_space=None, faulty_seeds=None):
+        self.possible_agents = ["agent_0", "agent_1"]
+        self.agents = []
+        self.fault = fault
+        self.faulty_seeds = faulty_seeds
+        self._faulty = faulty_seeds is None
+        self._action_space = action_space or spaces.Discrete(2)
+        self._t = 0
+        self._resets = 0
+
+    def observation_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+    def action_space(self, agent):
+        return self._action_space
+
+    def _now(self, fault):
+        return self.fault == fault and self._faulty and self._t == 2
+
+    def _obs(self):
+        obs = {a: np.zeros(2, np.float32) for a in self.possible_agents}
+        if self._now("shape_changes"):
+            obs["agent_1"] = np.zeros(3, np.float32)
+        if self._now("missing_obs"):
+            del obs["agent_1"]
+        if self._now("string_obs"):
+            obs["agent_1"] = np.array(["0.5", "0.25"])
+        if self._now("object_obs"):
+            obs["agent_1"] = [Decimal("0.5"), Decimal("0.25")]
+        return obs
+
+    def reset(self, seed=None, options=None):
+        self._resets += 1
+        self._t = 0
+        if seed is not None and self.faulty_seeds is not None:
+            self._faulty = seed in self.faulty_seeds
+        if self.fault == "renamed" and self._resets > 1:
+            self.possible_agents = ["player_0", "player_1"]
+        if self.fault == "declared_shape":
+            self.agents = list(self.possible_agents)
+            return {a: np.zeros(5, np.float32) for a in self.agents}, {a: {} for a in self.agents}
+        self.agents = list(self.possible_agents)
+        return self._obs(), {a: {} for a in self.agents}
+
+    def step(self, actions):
+        self._t += 1
+        reward = 1e30 if self.fault == "huge_reward" else 0.0
+        rewards = dict.fromkeys(self.agents, reward)
+        if self._now("missing_reward"):
+            del rewards["agent_1"]
+        if self._now("none_reward"):
+            rewards["agent_1"] = None
+        if self._now("string_reward"):
+            rewards["agent_1"] = "1.0"
+        truncations = dict.fromkeys(self.agents, self._t >= 4)
+        terminations = dict.fromkeys(self.agents, False)
+        if self.fault == "one_terminated" and self._t == 2:
+            terminations["agent_0"] = True
+        infos = {a: {} for a in self.agents}
+        obs = self._obs()
+        if self._t >= 4:
+            self.agents = []
+        return obs, rewards, terminations, truncations, infos
+
+
+def _reversed_dict(mapping):
+    return dict(reversed(list(mapping.items())))
+
+
+class ReorderedMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` that lists its agents (``agents`` and every dict it returns) in the reverse order of
+    ``possible_agents``."""
+
+    def reset(self, seed=None, options=None):
+        observations, infos = super().reset(seed=seed, options=options)
+        self.agents = self.agents[::-1]
+        return _reversed_dict(observations), _reversed_dict(infos)
+
+    def step(self, actions):
+        results = super().step(actions)
+        self.agents = self.agents[::-1]
+        return tuple(_reversed_dict(result) for result in results)

@@ -201,6 +201,38 @@ def _missing_extra(args: argparse.Namespace) -> str | None:
     return None
 
 
+def check_run_folder(option: str, run: Path) -> None:
+    """Refuse a run folder that does not exist or has no ``progress.csv`` (it used to be reported as a run without
+    SAEIR logs).
+
+    :param option: the option's name, e.g. ``--entropy-plot``
+    :param run: the folder given
+    :raises ~sb3_saeir.config.ConfigError: naming the option and the folder
+    """
+    if not run.is_dir():
+        raise ConfigError(f"{option} {run} is not a folder; give a SAEIR run's folder (it holds progress.csv).")
+    if not (run / "progress.csv").is_file():
+        raise ConfigError(f"{option} {run} has no progress.csv; give the folder of a SAEIR training run.")
+
+
+def _entropy_plot(run: Path) -> int:
+    """``--entropy-plot``: the figure and the table of a SAEIR run (exit 2 on a folder that is not one)."""
+    try:
+        check_run_folder("--entropy-plot", run)
+        summary = plot_system_entropy(run, run / "system_entropy.png")
+    except (ConfigError, ValueError) as error:
+        return _error(f"--entropy-plot {error}" if not isinstance(error, ConfigError) else str(error))
+    print(f"wrote {run / 'system_entropy.png'}")
+    print("| scale | fire rate (all rollouts) | fire rate (last 10%) | value entropy (first -> last rollout) |")
+    print("|---|---|---|---|")
+    for scale, figures in summary.items():
+        print(
+            f"| {scale} | {figures['fire_rate']:.2e} | {figures['fire_rate_late']:.2e} "
+            f"| {figures['entropy_first']:.3f} -> {figures['entropy_last']:.3f} |"
+        )
+    return 0
+
+
 def _main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     missing = _missing_extra(args)
@@ -208,16 +240,7 @@ def _main(args: argparse.Namespace) -> int:
         print(f"sb3_saeir.benchmark: error: {missing}", file=sys.stderr)
         return 2
     if args.entropy_plot:
-        summary = plot_system_entropy(Path(args.entropy_plot), Path(args.entropy_plot) / "system_entropy.png")
-        print(f"wrote {Path(args.entropy_plot) / 'system_entropy.png'}")
-        print("| scale | fire rate (all rollouts) | fire rate (last 10%) | value entropy (first -> last rollout) |")
-        print("|---|---|---|---|")
-        for scale, figures in summary.items():
-            print(
-                f"| {scale} | {figures['fire_rate']:.2e} | {figures['fire_rate_late']:.2e} "
-                f"| {figures['entropy_first']:.3f} -> {figures['entropy_last']:.3f} |"
-            )
-        return 0
+        return _entropy_plot(Path(args.entropy_plot))
     problem = _check_arguments(args)
     if problem is not None:
         return _error(problem)

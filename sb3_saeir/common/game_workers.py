@@ -18,7 +18,9 @@ reported as one; :meth:`GameWorkerPool.close` ends every worker (terminating tho
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import signal
+import sys
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing import connection as mp_connection
@@ -36,6 +38,29 @@ CLOSE_TIMEOUT_S = 10.0
 
 class GameWorkerError(RuntimeError):
     """A game worker process raised an error or died."""
+
+
+class GameFaultError(ValueError):
+    """A game returned something the vec env cannot use (a missing reward, an observation that is not numbers, ...).
+
+    The message names the env, the game, the agent and the step of its episode. Raised by the check around each game
+    (:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`), and re-raised as it is when the game runs in a worker
+    process, so the two paths give the same error.
+    """
+
+
+# Exit status of a worker process that found the main module creating game workers while it was being imported again
+# (a script without the ``if __name__ == "__main__":`` guard); the parent reports it in one line.
+UNGUARDED_MAIN_EXIT_CODE = 87
+
+
+def exit_if_importing_main() -> None:
+    """End this process at once, silently, with :data:`UNGUARDED_MAIN_EXIT_CODE` if it is a worker process that is
+    importing the main module again: a script that creates an env with workers at import time, without the
+    ``if __name__ == "__main__":`` guard, would otherwise start workers of its own here and fail with
+    multiprocessing's traceback, once per worker. The parent then reports the missing guard in one line."""
+    if getattr(mp.current_process(), "_inheriting", False):
+        os._exit(UNGUARDED_MAIN_EXIT_CODE)
 
 
 def split_games(n_games: int, n_workers: int) -> list[range]:
@@ -117,6 +142,9 @@ class GameBlock:
         self.agents = list(games[0].possible_agents)
         self.n_agents = len(self.agents)
         self.first_slot = first_slot
+        for index, game in enumerate(games, start=first_slot // self.n_agents):
+            if hasattr(game, "game_index"):  # the vec env's check around each game: for its messages
+                game.game_index = index
 
     def _rows(self, game: int) -> slice:
         start = self.first_slot + game * self.n_agents
@@ -201,11 +229,30 @@ def worker_main(make_games: bytes, first_slot: int, slots: SharedSlots, pipe: Co
                 raise ValueError(f"unknown command {command!r}")
     except EOFError:  # the parent is gone
         return
+    except GameFaultError as fault:  # re-raised as it is by the parent: the same error as with the games in-process
+        try:
+            pipe.send(("fault", fault))
+        except (BrokenPipeError, OSError):
+            pass
     except BaseException as error:
         try:
             pipe.send(("error", (f"{type(error).__name__}: {error}", traceback.format_exc())))
         except (BrokenPipeError, OSError):
             pass
+
+
+def unguarded_main_message(start_method: str) -> str:
+    """The one line for a script that creates game workers when it is imported (:func:`exit_if_importing_main`).
+
+    :param start_method: the workers' multiprocessing start method
+    """
+    main = sys.modules.get("__main__")
+    script = getattr(main, "__file__", None) or "the main script"
+    return (
+        f"The game workers could not start: {script} creates an env with num_cpus >= 2 when it is imported, and "
+        f"every worker (started with multiprocessing's {start_method!r} method) imports it again; put the script's "
+        'code under `if __name__ == "__main__":` (docs/guide/custom_env.md).'
+    )
 
 
 class GameWorkerPool:
@@ -233,9 +280,11 @@ class GameWorkerPool:
     ) -> None:
         if not 1 <= n_workers <= n_games:
             raise ValueError(f"n_workers must be between 1 and n_games={n_games}, got {n_workers}.")
+        exit_if_importing_main()
         if start_method is None:
             start_method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         ctx = mp.get_context(start_method)
+        self.start_method = start_method
         self.n_games = n_games
         self.n_agents = n_agents
         self.games_of_worker = split_games(n_games, n_workers)
@@ -293,19 +342,25 @@ class GameWorkerPool:
             try:
                 status, data = self.pipes[worker].recv()
             except (EOFError, ConnectionResetError, OSError):
-                status, data = "error", self._death_report(worker)
+                data = self._death_report(worker)
+                status = "unguarded" if isinstance(data, str) else "error"
             self._waiting.discard(worker)
-            if status == "error" and failure is None:
-                failure = (worker, data)
+            if status != "ok" and (failure is None or (failure[0] == "error" and status != "error")):
+                failure = (status, worker, data)  # a game's fault or the missing guard first: they say what to fix
             replies.append(data)
-        if failure is not None:
-            worker, (message, trace) = failure
-            games = self.games_of_worker[worker]
-            self.close()
-            raise GameWorkerError(
-                f"Game worker {worker} (games {games.start}-{games.stop - 1}) failed: {message}\nWorker traceback:\n{trace}"
-            )
-        return replies
+        if failure is None:
+            return replies
+        status, worker, data = failure
+        self.close()
+        if status == "fault":
+            raise data
+        if status == "unguarded":
+            raise GameWorkerError(data)
+        message, trace = data
+        games = self.games_of_worker[worker]
+        raise GameWorkerError(
+            f"Game worker {worker} (games {games.start}-{games.stop - 1}) failed: {message}\nWorker traceback:\n{trace}"
+        )
 
     def first_done(self, workers: Sequence[int]) -> int:
         """Block until one of ``workers`` (with work in flight) has answered; return the first in ``workers`` order
@@ -314,10 +369,13 @@ class GameWorkerPool:
         ready = set(mp_connection.wait(pipes))
         return next(worker for worker, pipe in zip(workers, pipes) if pipe in ready)
 
-    def _death_report(self, worker: int) -> tuple[str, str]:
-        """Message and hint for a worker that ended without answering."""
+    def _death_report(self, worker: int) -> tuple[str, str] | str:
+        """Message and hint for a worker that ended without answering; for a worker that found the main module
+        unguarded (:func:`exit_if_importing_main`), the one line that says so."""
         process = self.processes[worker]
         process.join(timeout=1.0)
+        if process.exitcode == UNGUARDED_MAIN_EXIT_CODE:
+            return unguarded_main_message(self.start_method)
         return (
             f"the worker process ended without answering (exit code {process.exitcode})",
             "Workers start with multiprocessing's forkserver or spawn method, which imports the main module again: a "

@@ -25,7 +25,7 @@ from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
 from sb3_saeir.common.hypergraph import SCALES
-from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm
+from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm, check_hidden_size
 from sb3_saeir.common.type_aliases import MultiAgentStates
 from sb3_saeir.common.utils import check_bool
 
@@ -151,6 +151,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         optimizer_kwargs: dict[str, Any] | None = None,
         **sb3_kwargs: Any,
     ) -> None:
+        hidden_size = check_hidden_size(type(self).__name__, hidden_size)
         check_bool(
             type(self).__name__,
             recurrent_actor=recurrent_actor,
@@ -462,9 +463,10 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         :param observation: ``(B, d)`` observations of B agents, or ``(d,)`` for one agent
         :param state: actor GRU states ``(B, H)`` from the previous call (``None``: zeros)
         :param episode_start: ``(B,)``, 1 where an agent starts a new episode (resets its state)
-        :param deterministic: greedy actions
+        :param deterministic: greedy actions (``True`` or ``False``; a string such as ``"no"`` is refused)
         :return: actions and the new actor states (``None`` for an MLP actor)
         """
+        check_bool("predict", deterministic=deterministic)
         self.set_training_mode(False)
         obs_array = self._predict_observations(observation)
         single = obs_array.ndim == len(self.observation_space.shape)  # type: ignore[arg-type]
@@ -550,6 +552,23 @@ def _default_scales(n_agents: int) -> tuple[str, ...]:
     return tuple(scale for scale in SCALES if scale != "group")
 
 
+def warn_degenerate_group_scale(group_size: int) -> None:
+    """Warn (one line) that the group scale is degenerate on one-agent games: with ``group_size >= N`` its hyperedges
+    are the team's one all-ones edge, which with a single agent is also the individual scale's edge
+    (``docs/method.md``, "The critic"), so every critic sees the same one-node hypergraph.
+
+    :param group_size: k of the group scale
+    """
+    warnings.warn(
+        f"MSHGPolicy: the group scale is degenerate with 1 agent per game (group_size={group_size} >= N = 1 makes its "
+        "hyperedge the team's, and with one agent the team and individual hyperedges are the same one-agent edge): "
+        "every critic sees the same hypergraph; train on games of 2 or more agents, or pass "
+        "policy_kwargs=dict(scales=('team',)) for one critic.",
+        UserWarning,
+        stacklevel=4,
+    )
+
+
 class MSHGPolicy(MultiAgentActorCriticPolicy):
     """SAEIR's multi-scale hypergraph (MSHG) critic with the parameter-shared recurrent actor.
 
@@ -560,7 +579,8 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
 
     :param scales: which critics to build (any non-empty subset of ``("team", "group", "individual")``, in that order).
         ``None`` (default): all three, except on 2-agent games with the default ``group_size``, where the group scale
-        would copy the team scale and is left out (with a ``UserWarning`` saying so)
+        would copy the team scale and is left out (with a ``UserWarning`` saying so). On 1-agent games every scale's
+        hypergraph is the one agent: a group scale there is kept, with a ``UserWarning`` that it is degenerate
     :param group_size: k, hyperedge size of the group scale (``num_in_group``; ``None``: 2). Set explicitly with the
         group scale, it must be smaller than the number of agents
     :param n_edge_types: edge types of the group scale (``num_group`` = 3)
@@ -595,6 +615,8 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
                 "every group hyperedge holds the whole team and the group critic copies the team critic. Use a smaller "
                 "group_size, or leave the group scale out (scales=('team', 'individual'))."
             )
+        if "group" in self.critic_scales and n_agents == 1:
+            warn_degenerate_group_scale(group_size)
         self.group_size = group_size
         self.n_edge_types = n_edge_types
         self.gumbel_tau = gumbel_tau

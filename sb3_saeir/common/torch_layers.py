@@ -11,6 +11,7 @@ IJCAI-24.
 import itertools
 from typing import Literal
 
+import numpy as np
 import torch as th
 from torch import nn
 
@@ -34,6 +35,23 @@ def activation_gain(activation_fn: type[nn.Module]) -> float:
     :return: The gain (1 for activations without a recommendation).
     """
     return nn.init.calculate_gain(_GAIN_NAMES.get(activation_fn, "linear"))
+
+
+def check_hidden_size(owner: str, hidden_size: object) -> int:
+    r"""
+    The width of the hidden layers and GRUs as a Python ``int``, or a one-line ``ValueError`` naming ``hidden_size``
+    (torch would fail later, naming ``input_size`` or a tensor size). NumPy integers are accepted.
+
+    :param owner: Class name for the message.
+    :param hidden_size: The ``hidden_size`` argument.
+    :return: ``int(hidden_size)``.
+    """
+    if isinstance(hidden_size, bool) or not isinstance(hidden_size, (int, np.integer)) or hidden_size < 1:
+        raise ValueError(
+            f"{owner}: hidden_size must be a positive integer (the width of every hidden layer and GRU, 64 in the "
+            f"paper's code), got {hidden_size!r}; e.g. policy_kwargs=dict(hidden_size=64)."
+        )
+    return int(hidden_size)
 
 
 class FCBlock(nn.Sequential):

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import tempfile
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,11 +25,15 @@ def default_num_threads() -> int:
     from_environment = os.environ.get("OMP_NUM_THREADS", "")
     if from_environment.isdigit() and int(from_environment) > 0:
         return int(from_environment)
+    return max(1, min(MAX_DEFAULT_THREADS, usable_cores()))
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity on Linux, else ``os.cpu_count()``)."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(MAX_DEFAULT_THREADS, cores))
+        return os.cpu_count() or 1
 
 
 def set_num_threads(num_threads: int | None) -> int:
@@ -56,3 +62,51 @@ def check_bool(owner: str, **values: Any) -> None:
     for name, value in values.items():
         if not isinstance(value, (bool, np.bool_)):
             raise NotABoolError(f"{owner}: {name} must be True or False, got {value!r} ({type(value).__name__}).")
+
+
+# Largest seed: SB3's ``set_random_seed`` seeds NumPy's legacy generator, which takes 0 .. 2**32 - 1.
+MAX_SEED = 2**32 - 1
+
+
+def check_seed(owner: str, seed: Any, name: str = "seed", hint: str = " (or None)") -> int | None:
+    """The seed as a Python ``int`` (``None`` kept), or a one-line ``ValueError`` naming the argument.
+
+    NumPy integers are accepted (Python's ``random.seed`` refuses them); booleans, floats, strings and seeds outside
+    ``0 .. 2**32 - 1`` (the range of SB3's ``set_random_seed``) are refused.
+
+    :param owner: class or function for the message (``""``: none, for a command-line option)
+    :param seed: the seed given
+    :param name: the argument's name, e.g. ``"seed"`` or ``"--seed"``
+    :param hint: what else the argument takes, appended to the message
+    :return: ``int(seed)``, or ``None``
+    """
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
+        prefix = f"{owner}: " if owner else ""
+        raise ValueError(f"{prefix}{name}={seed!r} is not a seed; pass an integer from 0 to 2**32 - 1{hint}.")
+    return int(seed)
+
+
+def unwritable_folder(folder: str | os.PathLike) -> str:
+    """Why no file could be written in ``folder`` (created with its missing parents, as the writers do), or ``""``.
+
+    The nearest existing folder is tried with a probe file, removed at once: permission bits alone pass for root
+    where the file system refuses (``/proc``, ``/sys``, a read-only mount).
+
+    :param folder: the folder a file is to be written in (it need not exist yet)
+    :return: one clause naming the folder and the problem, or ``""`` when a file can be written
+    """
+    path = Path(folder)
+    existing = next(parent for parent in (path, *path.parents) if parent.exists() or parent == Path(parent.anchor))
+    if not existing.is_dir():
+        return f"{existing} is a file, not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{existing} is not writable"
+    try:
+        handle, probe = tempfile.mkstemp(dir=existing, prefix=".sb3_saeir-write-test-")
+    except OSError as error:
+        return f"no file can be created in {existing} ({error.strerror})"
+    os.close(handle)
+    os.remove(probe)
+    return ""

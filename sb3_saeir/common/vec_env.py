@@ -34,9 +34,9 @@ from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
 from sb3_saeir.common.atomic import atomic_write_text, keep_damaged
-from sb3_saeir.common.game_workers import GameWorkerPool, GameWorkerVecEnv
+from sb3_saeir.common.game_workers import GameFaultError, GameWorkerPool, GameWorkerVecEnv, exit_if_importing_main
 from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
-from sb3_saeir.common.utils import check_bool
+from sb3_saeir.common.utils import check_bool, check_seed, usable_cores
 
 ParallelEnvFactory = Callable[..., ParallelEnv]
 
@@ -44,17 +44,24 @@ ParallelEnvFactory = Callable[..., ParallelEnv]
 EPISODE_METRICS_KEY = "episode_metrics"
 
 
-class AgentDeathError(RuntimeError):
+class AgentDeathError(GameFaultError, RuntimeError):
     """Raised when agents of a game leave it before the game ends (not supported without ``black_death``)."""
 
 
+# dtype kinds of the numbers a game may return as observations and rewards: bool, signed, unsigned, float
+NUMBER_KINDS = "biuf"
+
+
 class _NoAgentDeath(BaseParallelWrapper):
-    """Parallel-env wrapper that turns "an agent left the game early" into a clear error.
+    """Parallel-env wrapper that checks what one game returns, the same way in this process and in the env workers.
 
     SuperSuit's ``MarkovVectorEnv`` needs every agent in every step; an env whose agents can die must be wrapped with
-    ``supersuit.black_death_v3`` first.
+    ``supersuit.black_death_v3`` first. A missing or non-numeric observation or reward is refused with a
+    :class:`~sb3_saeir.common.game_workers.GameFaultError` naming the env, the game, the agent and the step of its
+    episode; ``agents`` are given in ``possible_agents`` order whatever order the game lists them in.
 
     :param env: the wrapped parallel env
+    :param game_index: the game's index in its vec env (for the messages)
     """
 
     def __getattr__(self, name: str) -> Any:
@@ -62,66 +69,119 @@ class _NoAgentDeath(BaseParallelWrapper):
             raise AttributeError(name)
         return super().__getattr__(name)
 
-    def __init__(self, env: ParallelEnv) -> None:
+    def __init__(self, env: ParallelEnv, game_index: int = 0) -> None:
         super().__init__(env)
         self._agent_names = list(env.possible_agents)  # as vectorized: SuperSuit keeps the first names
+        self._agent_set = set(self._agent_names)
         self._warned: set[str] = set()
+        self.game_index = game_index
+        self.episode_step = 0  # steps since the last reset
+
+    @property
+    def agents(self) -> list:
+        """The game's live agents in ``possible_agents`` order (the slot order), whatever order the game uses."""
+        live = self.env.agents
+        if live == self._agent_names:
+            return live
+        present = set(live)
+        return [agent for agent in self._agent_names if agent in present]
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         observations, infos = self.env.reset(seed=seed, options=options)
-        self._check_observations(observations, "reset")
+        self.episode_step = 0
+        self._check_observations(observations)
         return observations, infos
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
         observations, rewards, terminations, truncations, infos = self.env.step(actions)
+        self.episode_step += 1
         remaining = set(self.env.agents)
         if remaining and remaining != set(self.env.possible_agents):
             missing = sorted(set(self.env.possible_agents) - remaining)
             raise AgentDeathError(
-                f"Agents {missing} left the game before it ended. make_multiagent_vec_env needs every agent in every "
-                "step: wrap the parallel env with supersuit.black_death_v3(env) so that finished agents receive zero "
-                "observations and rewards until the game ends."
+                f"{self._where()}: agents {missing} left the game before it ended. make_multiagent_vec_env needs every "
+                "agent in every step: wrap the parallel env with supersuit.black_death_v3(env) so that finished agents "
+                "receive zero observations and rewards until the game ends."
             )
-        self._check_observations(observations, "step")
-        self._warn_faults(rewards, terminations, truncations)
+        self._check_observations(observations)
+        values = self._check_rewards(rewards)
+        self._warn_faults(values, terminations, truncations)
         return observations, rewards, terminations, truncations, infos
 
     def _game_name(self) -> str:
         return str((getattr(self.env, "metadata", None) or {}).get("name") or type(self.env.unwrapped).__name__)
 
-    def _check_observations(self, observations: dict, when: str) -> None:
-        """Raise one line naming the agent and the game when an observation is missing, unknown or of another shape
-        than the declared observation space."""
+    def _where(self, agent: str | None = None) -> str:
+        """``"<env>: game <g>, agent <i> (<name>), step <t> of its episode"`` (``reset`` for a reset)."""
+        when = f"step {self.episode_step} of its episode" if self.episode_step else "reset"
+        if agent is None:
+            return f"{self._game_name()}: game {self.game_index}, {when}"
+        index = self._agent_names.index(agent) if agent in self._agent_names else "?"
+        return f"{self._game_name()}: game {self.game_index}, agent {index} ({agent}), {when}"
+
+    def _check_observations(self, observations: dict) -> None:
+        """Raise one line naming the env, game, agent and step when an observation is missing, unknown, not made of
+        numbers (a string, ``None``, an object) or of another shape than the declared observation space."""
         possible = self._agent_names
-        unknown = sorted(set(observations) - set(possible), key=str)
-        if unknown:
-            raise ValueError(
-                f"{self._game_name()}: {when} returned observations of agents {unknown} not in the game's "
-                f"first possible_agents {possible} (agents renamed?): keep the agent names in every reset and step."
+        if observations.keys() != self._agent_set:
+            unknown = sorted(set(observations) - self._agent_set, key=str)
+            if unknown:
+                raise GameFaultError(
+                    f"{self._where()}: observations of agents {unknown} not in the game's first possible_agents "
+                    f"{possible} (agents renamed?); keep the agent names in every reset and step."
+                )
+            agent = next(agent for agent in possible if agent not in observations)
+            raise GameFaultError(
+                f"{self._where(agent)}: no observation; every agent of possible_agents needs one in every reset and "
+                "step (supersuit.black_death_v3 for finished agents)."
             )
         for agent in possible:
-            if agent not in observations:
-                raise ValueError(
-                    f"{self._game_name()}: {when} returned no observation of agent {agent!r}: every agent of "
-                    "possible_agents needs one in every reset and step (supersuit.black_death_v3 for finished agents)."
+            observation = np.asarray(observations[agent])
+            if observation.dtype.kind not in NUMBER_KINDS:
+                raise GameFaultError(
+                    f"{self._where(agent)}: the observation is {_describe(observations[agent])}, not numbers; return "
+                    f"a numeric array as the observation space declares ({self.env.observation_space(agent)})."
                 )
             expected = self.env.observation_space(agent).shape
-            shape = np.shape(observations[agent])
-            if expected is not None and shape != tuple(expected):
-                raise ValueError(
-                    f"{self._game_name()}: {when} returned an observation of shape {shape} for agent {agent!r}, its "
-                    f"observation space declares {tuple(expected)}: return observations of the declared shape."
+            if expected is not None and observation.shape != tuple(expected):
+                raise GameFaultError(
+                    f"{self._where(agent)}: an observation of shape {observation.shape}, its observation space "
+                    f"declares {tuple(expected)}; return observations of the declared shape."
                 )
 
-    def _warn_faults(self, rewards: dict, terminations: dict, truncations: dict) -> None:
-        """Warn once per game instance about rewards of huge magnitude and agents terminated while others continue."""
+    def _check_rewards(self, rewards: dict) -> np.ndarray:
+        """The agents' rewards in ``possible_agents`` order as an array, or one line naming the env, game, agent and
+        step of a reward that is missing or not a number (``None``, a string)."""
+        possible = self._agent_names
+        try:
+            values = np.asarray([rewards[agent] for agent in possible])
+        except KeyError as error:
+            raise GameFaultError(
+                f"{self._where(error.args[0])}: no reward; every agent of possible_agents needs one in every step "
+                "(0.0 when it earned nothing; supersuit.black_death_v3 for finished agents)."
+            ) from None
+        if values.dtype.kind not in NUMBER_KINDS or values.shape != (len(possible),):
+            for agent in possible:
+                value = np.asarray(rewards[agent])
+                if value.dtype.kind not in NUMBER_KINDS or value.size != 1:
+                    raise GameFaultError(
+                        f"{self._where(agent)}: the reward is {_describe(rewards[agent])}, not a number; return a "
+                        "float (0.0 when the agent earned nothing)."
+                    )
+        return values
+
+    def _warn_faults(self, rewards: np.ndarray, terminations: dict, truncations: dict) -> None:
+        """Warn once per game instance about rewards of huge magnitude and agents terminated while others continue.
+
+        :param rewards: the agents' rewards in ``possible_agents`` order (checked: numbers)
+        """
         warned = self._warned
         if "reward" not in warned:
-            values = np.array([float(value) for value in rewards.values()], dtype=np.float64)
+            values = rewards.astype(np.float64).reshape(-1)
             huge = np.isfinite(values) & (np.abs(values) >= HUGE_REWARD)
             if huge.any():
                 warned.add("reward")
-                agent = list(rewards)[int(np.flatnonzero(huge)[0])]
+                agent = self._agent_names[int(np.flatnonzero(huge)[0])]
                 warnings.warn(
                     f"{self._game_name()}: agent {agent!r} received a reward of {values[huge][0]:.3g} (|r| >= "
                     f"{HUGE_REWARD:.0e}); returns and advantages overflow float32: scale the rewards down.",
@@ -137,6 +197,12 @@ class _NoAgentDeath(BaseParallelWrapper):
                     "keeps stepping: end all agents of a game together (or wrap with supersuit.black_death_v3).",
                     stacklevel=2,
                 )
+
+
+def _describe(value: Any) -> str:
+    """A short description of a value a game returned, for the messages: its type and a clipped ``repr``."""
+    text = repr(value)
+    return f"{type(value).__name__} {text if len(text) <= 40 else text[:37] + '...'}"
 
 
 def _as_vectorized(game: ParallelEnv) -> _NoAgentDeath:
@@ -219,6 +285,24 @@ def check_vec_env_options(n_games: Any, num_cpus: Any, mark_truncation: Any, che
     if isinstance(num_cpus, bool) or not isinstance(num_cpus, (int, np.integer)) or num_cpus < 0:
         raise ValueError(f"num_cpus must be an integer >= 0 (0: every game in this process), got {num_cpus!r}.")
     check_bool("make_multiagent_vec_env", mark_truncation=mark_truncation, check_finite=check_finite)
+
+
+def warn_more_workers_than_cores(num_cpus: int, n_games: int) -> None:
+    """Warn (one line) when ``num_cpus`` starts more env worker processes than this process may use cores: the
+    workers then take turns on the cores and the games step slower than with fewer workers.
+
+    :param num_cpus: the ``num_cpus`` argument (>= 2)
+    :param n_games: games (at most one worker per game)
+    """
+    workers, cores = min(int(num_cpus), int(n_games)), usable_cores()
+    if workers > cores:
+        fix = f"num_cpus={cores} or less" if cores >= 2 else "num_cpus=0 (every game in this process)"
+        warnings.warn(
+            f"make_multiagent_vec_env: num_cpus={num_cpus} starts {workers} env worker processes, but this machine "
+            f"gives this process {cores} core(s): the workers take turns and step slower than fewer would; pass {fix}.",
+            UserWarning,
+            stacklevel=4,
+        )
 
 
 def check_action_space(action_space: spaces.Space) -> None:
@@ -315,6 +399,9 @@ class MultiAgentVecEnv(VecEnv):
         import supersuit as ss
 
         check_vec_env_options(n_games, num_cpus, mark_truncation, check_finite)
+        if num_cpus >= 2:
+            exit_if_importing_main()  # before anything is built: a worker importing an unguarded script again
+            warn_more_workers_than_cores(num_cpus, n_games)
         probe_env = env_fn()
         check_parallel_env(probe_env)
         check_action_space(probe_env.action_space(probe_env.possible_agents[0]))
@@ -342,6 +429,8 @@ class MultiAgentVecEnv(VecEnv):
         else:
             markov_env = ss.pettingzoo_env_to_vec_env_v1(_as_vectorized(probe_env))
             self.venv = ss.concat_vec_envs_v1(markov_env, self.n_games, num_cpus=0, base_class="gymnasium")
+            for game, vec in enumerate(self.venv.vec_envs):  # copies of markov_env: number their checks' messages
+                vec.par_env.game_index = game
         self._in_process = not isinstance(self.venv, GameWorkerVecEnv)
         #: Slot ranges of the groups of games that step on their own (double-buffered sampling): one per worker
         #: process; one group of all slots when the games run in this process.
@@ -379,6 +468,7 @@ class MultiAgentVecEnv(VecEnv):
         :param seed: base seed; ``None`` draws one
         :return: the seed of every slot
         """
+        seed = check_seed(f"{type(self).__name__}.seed", seed)
         if seed is None:
             seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
         self._game_seed = int(seed)
@@ -676,9 +766,12 @@ def make_multiagent_vec_env(
     :param task: a registered task id (see :func:`sb3_saeir.envs.list_tasks`, e.g. ``"cn-sparse-n3"``) or a callable
         returning a PettingZoo ``ParallelEnv`` (called with ``task_kwargs``)
     :param n_games: number of game copies
-    :param seed: base seed; game ``g`` is reset with ``seed + g``. ``None``: unseeded (games still differ)
+    :param seed: base seed, an integer from 0 to 2**32 - 1 (NumPy integers too); game ``g`` is reset with
+        ``seed + g``. ``None``: unseeded (games still differ)
     :param num_cpus: worker processes stepping the games (:mod:`sb3_saeir.common.game_workers`, at most one per
-        game); 0 keeps every game in this process
+        game); 0 keeps every game in this process. More workers than this process has cores is warned about. A
+        script that passes ``num_cpus >= 2`` needs its code under ``if __name__ == "__main__":`` (the workers import
+        it again); without the guard, the error says so in one line
     :param mark_truncation: set ``TimeLimit.truncated`` in infos when a game hits its time limit
     :param backend: ``"native"``: the task's own batched vec env (the navigation tasks have one, see
         ``docs/tasks.md``; all games in this process); ``"supersuit"``: the games through SuperSuit, as any
@@ -689,6 +782,7 @@ def make_multiagent_vec_env(
     :return: the vector env; ``env.n_agents``, ``env.n_games`` and ``env.possible_agents`` describe the layout
     """
     check_vec_env_options(n_games, num_cpus, mark_truncation, check_finite)
+    seed = check_seed("make_multiagent_vec_env", seed)
     if backend not in VEC_ENV_BACKENDS:
         raise ValueError(f"backend must be one of {VEC_ENV_BACKENDS[1:]} or None (the task's default), got {backend!r}.")
     if backend != "supersuit" and (isinstance(task, str) or callable(task)):

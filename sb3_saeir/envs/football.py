@@ -95,6 +95,25 @@ def check_scenario(scenario: str) -> None:
         raise ValueError(f"Unknown gfootball scenario {scenario!r}. Available: {', '.join(available)}.")
 
 
+# The parts of gfootball's ``rewards`` spec (comma-separated; ``scoring`` is required by gfootball)
+REWARD_PARTS = ("scoring", "checkpoints")
+
+
+def check_rewards(rewards: object) -> None:
+    """Refuse a ``rewards`` spec gfootball would reject with an empty ``AssertionError`` (or ignore in part), before
+    gfootball is imported.
+
+    :param rewards: ``"scoring"`` or ``"scoring,checkpoints"`` (parts in any order)
+    :raises ValueError: one line naming ``rewards`` and the valid values
+    """
+    parts = rewards.split(",") if isinstance(rewards, str) else []
+    if "scoring" not in parts or any(part not in REWARD_PARTS for part in parts) or len(set(parts)) != len(parts):
+        raise ValueError(
+            f"FootballEnv: rewards={rewards!r} is not a gfootball reward spec; use 'scoring' (+-1 per goal) or "
+            "'scoring,checkpoints' (plus gfootball's checkpoint rewards on the way to the goal)."
+        )
+
+
 class FootballEnv(ParallelEnv, EzPickle):
     """A gfootball scenario with ``N`` controlled left-team players (PettingZoo ``ParallelEnv``).
 
@@ -130,6 +149,7 @@ class FootballEnv(ParallelEnv, EzPickle):
         )
         check_positive_int("N", N)
         check_bool(type(self).__name__, share_reward=share_reward)
+        check_rewards(rewards)
         if render_mode is not None:
             raise ValueError(f"render_mode={render_mode!r} is not supported by the football tasks (only None).")
         football_env = import_gfootball()

@@ -44,7 +44,7 @@ from sb3_saeir.common.sampling import (
     slice_states,
 )
 from sb3_saeir.common.type_aliases import GroupedRecurrentSamples
-from sb3_saeir.common.utils import check_bool
+from sb3_saeir.common.utils import check_bool, check_seed, unwritable_folder
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 from sb3_saeir.intrinsic.elign import ElignCallback
 from sb3_saeir.intrinsic.rnd import RNDCallback
@@ -165,6 +165,8 @@ _RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
     "stats_window_size": (lambda x: x >= 1, ">= 1"),
     "total_timesteps": (lambda x: x >= 1, ">= 1"),
 }
+_MINIBATCH_ARGUMENTS = {"batch_size", "n_minibatches", "n_steps", "data_chunk_length"}
+_INTRINSIC_ARGUMENTS = {"intrinsic_reward", "intrinsic_coef", "intrinsic_kwargs"}
 _INTEGER_ARGUMENTS = ("n_steps", "n_epochs", "n_minibatches", "data_chunk_length", "stats_window_size", "total_timesteps")
 _BOOL_ARGUMENTS = ("normalize_advantage", "normalize_values")
 VALUE_CLIPPING_OFF = -1  # the clip_range_vf that turns value clipping off
@@ -186,6 +188,24 @@ def check_ranges(algo_name: str, **values: Any) -> None:
         test, rule = _RANGES[name]
         if not test(float(value)):
             raise ValueError(f"{algo_name}: {name}={value!r} is out of range; it must be {rule}.")
+
+
+def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool = False) -> None:
+    """The constructor's checks on the values ``load`` sets without the constructor (``kwargs`` and
+    ``custom_objects``): ranges, booleans, ``value_loss`` and ``double_buffered``.
+
+    :param algo_name: class name for the message
+    :param overrides: argument name -> value
+    :param inference: loaded for inference only (rl-zoo3's enjoy: ``custom_objects={"learning_rate": 0.0, ...}``), so
+        ``learning_rate`` is not checked
+    """
+    skipped = {"learning_rate"} if inference else set()
+    check_ranges(algo_name, **{key: value for key, value in overrides.items() if key in _RANGES and key not in skipped})
+    check_bool(algo_name, **{key: value for key, value in overrides.items() if key in _BOOL_ARGUMENTS})
+    if "value_loss" in overrides:
+        check_value_loss(algo_name, overrides["value_loss"])
+    if "double_buffered" in overrides:
+        check_double_buffered(algo_name, overrides["double_buffered"])
 
 
 def check_env_argument(algo_name: str, env: Any) -> None:
@@ -330,6 +350,48 @@ def check_device(algo_name: str, device: Any) -> None:
         )
 
 
+def check_value_loss(algo_name: str, value_loss: Any) -> None:
+    """Refuse a ``value_loss`` other than ``"huber"`` or ``"mse"``.
+
+    :param algo_name: class name for the message
+    :param value_loss: ``value_loss`` argument
+    """
+    if value_loss not in ("huber", "mse"):
+        raise ValueError(f"{algo_name}: value_loss must be 'huber' or 'mse', got {value_loss!r}.")
+
+
+def check_double_buffered(algo_name: str, double_buffered: Any) -> None:
+    """Refuse a ``double_buffered`` other than ``True``, ``False`` or ``"auto"``.
+
+    :param algo_name: class name for the message
+    :param double_buffered: ``double_buffered`` argument
+    """
+    if not (isinstance(double_buffered, bool) or double_buffered == "auto"):
+        raise ValueError(f"{algo_name}: double_buffered must be True, False or 'auto', got {double_buffered!r}.")
+
+
+def check_save_path(algo_name: str, path: Any) -> None:
+    """Refuse a ``save`` path where no file can be written, before anything is written: an empty name, a path under a
+    file, or in a folder that is not writable (SB3 would recurse without end under ``/proc``, or fail with the OS's
+    message). A file object passes (SB3 writes to it).
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``save``
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        return
+    if str(path) in ("", "."):
+        raise ValueError(f"{algo_name}.save: {str(path)!r} is not a file name; pass e.g. 'model.zip'.")
+    target = pathlib.Path(path)
+    if target.suffix == "":
+        target = target.with_suffix(".zip")  # as SB3's save names it (an existing folder: SB3 saves to <path>_2)
+    problem = unwritable_folder(target.parent)
+    if problem:
+        raise ValueError(f"{algo_name}.save: cannot write {str(target)!r}: {problem}; save to a folder you can write.")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ValueError(f"{algo_name}.save: {str(target)!r} exists and is not writable; save to another path.")
+
+
 class MAPPO(OnPolicyAlgorithm):
     """Recurrent MAPPO (Yu et al., "The Surprising Effectiveness of PPO in Cooperative Multi-Agent Games", NeurIPS
     2022 D&B; code: https://github.com/marlbenchmark/on-policy), with critics over each game's agents and pluggable
@@ -469,8 +531,9 @@ class MAPPO(OnPolicyAlgorithm):
         check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
         check_tensorboard_log(type(self).__name__, tensorboard_log)
         check_device(type(self).__name__, device)
-        if not (isinstance(double_buffered, bool) or double_buffered == "auto"):
-            raise ValueError(f"double_buffered must be True, False or 'auto', got {double_buffered!r}.")
+        check_double_buffered(type(self).__name__, double_buffered)
+        check_value_loss(type(self).__name__, value_loss)
+        seed = check_seed(type(self).__name__, seed)
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]
@@ -494,8 +557,6 @@ class MAPPO(OnPolicyAlgorithm):
             _init_setup_model=False,
             supported_action_spaces=(spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary),
         )
-        if value_loss not in ("huber", "mse"):
-            raise ValueError(f"value_loss must be 'huber' or 'mse', got {value_loss!r}.")
         self.batch_size = batch_size
         self.n_epochs = n_epochs
         self.clip_range = clip_range
@@ -1026,16 +1087,14 @@ class MAPPO(OnPolicyAlgorithm):
         model zip."""
         name = cls.__name__
         overrides = {**(custom_objects or {}), **kwargs}
-        # rl-zoo3's enjoy loads for inference with custom_objects={"learning_rate": 0.0, ...}: no training, no check
-        inference_only = {"learning_rate"} if (custom_objects or {}).get("learning_rate") == 0.0 else set()
-        checked = {key: value for key, value in overrides.items() if key in _RANGES and key not in inference_only}
-        check_ranges(name, **checked)
-        check_bool(name, **{key: value for key, value in overrides.items() if key in _BOOL_ARGUMENTS})
+        check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
+        if "seed" in kwargs:
+            kwargs["seed"] = check_seed(name, kwargs["seed"])
         check_device(name, device)
         if env is not None:
             check_env_argument(name, env)
         try:
-            return super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
+            model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
             raise _incomplete_model_error(name, path, error) from None
         except ValueError as error:
@@ -1043,6 +1102,30 @@ class MAPPO(OnPolicyAlgorithm):
             if isinstance(error, json.JSONDecodeError) or "Names of parameters do not match" in str(error):
                 raise _incomplete_model_error(name, path, error) from None
             raise
+        model._apply_overrides(overrides)
+        return model
+
+    def _apply_overrides(self, overrides: dict[str, Any]) -> None:
+        """After :meth:`load`, the constructor's checks that need the loaded model: the minibatch split of a
+        ``batch_size``, ``n_minibatches``, ``n_steps`` or ``data_chunk_length`` override (SB3 sets the attribute
+        only, so ``batch_size`` was ignored), and an intrinsic-reward override against the saved settings.
+
+        :param overrides: the ``custom_objects`` and keyword arguments given to ``load``
+        """
+        if _MINIBATCH_ARGUMENTS & set(overrides) and self.n_agents is not None:
+            if "n_minibatches" in overrides and "batch_size" not in overrides:
+                self.batch_size = None  # as in the constructor: n_minibatches decides when batch_size is None
+            self.n_minibatches = self._resolve_minibatches()
+        if _INTRINSIC_ARGUMENTS & set(overrides):
+            check_intrinsic_reward(type(self).__name__, self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs)
+            self.intrinsic_kwargs = dict(self.intrinsic_kwargs or {})
+
+    def set_random_seed(self, seed: int | None = None) -> None:
+        """SB3's ``set_random_seed``, also for NumPy integers; a bad seed is one line naming ``seed``.
+
+        :param seed: the seed (0 .. 2**32 - 1), or ``None``
+        """
+        super().set_random_seed(check_seed(type(self).__name__, seed))
 
     def save(
         self,
@@ -1053,12 +1136,14 @@ class MAPPO(OnPolicyAlgorithm):
         """SB3's ``save``, atomic for a path: the zip is written to a temporary file in the same folder and moved onto
         the path when complete (:func:`~sb3_saeir.common.atomic.save_zip`), so Ctrl-C, a kill or a full disk during
         the save leaves the file that was there whole. SB3's path rules are kept (``.zip`` added to a path without
-        suffix); a file object is written to directly, as by SB3.
+        suffix); a file object is written to directly, as by SB3. A path that cannot be written is refused first, in
+        one line (:func:`check_save_path`).
 
         :param path: path to the file where the model should be saved, or a binary file object
         :param exclude: name of parameters that should be excluded in addition to the default ones
         :param include: name of parameters that might be excluded but should be included anyway
         """
+        check_save_path(type(self).__name__, path)
         if isinstance(path, (str, os.PathLike)):
             save_zip(path, lambda file: super(MAPPO, self).save(file, exclude=exclude, include=include))
         else:

@@ -37,6 +37,8 @@ CHILD = textwrap.dedent(
     from sb3_saeir.experiment import Experiment
 
     writer, signal_name, fraction, path = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4]
+    # Ctrl-C as in a terminal: a parent may ignore SIGINT (pytest-xdist's workers do), and children inherit that
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=1, seed=0)
     if writer == "ippo":  # the final model of `python -m sb3_saeir.train --algo ippo` (plain SB3 PPO)
         experiment = Experiment("ippo", "cn-sparse-n3", n_games=1, seed=0)

@@ -77,7 +77,7 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
         if key not in _SB3_NOOP_VALUES:
             raise ValueError(
                 f"{policy_name}: unknown policy argument {key!r}. Valid arguments: hidden_size, activation_fn, "
-                "recurrent_actor, normalize_values, value_norm_beta, critic_gumbel_noise, log_std_init, "
+                "recurrent, recurrent_actor, normalize_values, value_norm_beta, critic_gumbel_noise, log_std_init, "
                 "optimizer_class, optimizer_kwargs, and the critic's own options (see the policy's docstring)."
             )
         if _is_noop(key, value):
@@ -112,13 +112,21 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     (orthogonal init, gain 0.01). All networks are trained by one Adam optimizer; since they share no parameters this
     equals one Adam per network, and gradients are clipped per network by the algorithm.
 
+    ``recurrent=False`` builds every network without its GRU (the feed-forward variant, as the MAPPO authors'
+    ``use_recurrent_policy=False`` and BenchMARL's default MAPPO; not the paper's setting): the policy keeps no state
+    (its states have width 0) and the update runs each network once per minibatch on its valid rows, without chunks
+    (``docs/guide/algorithms.md``, "Feed-forward networks").
+
     :param observation_space: one agent's observation space
     :param action_space: one agent's action space
     :param lr_schedule: learning rate schedule
     :param n_agents: agents per game (N); set by the algorithm from the vec env
     :param hidden_size: width of every hidden layer and GRU (64 in the paper's code)
     :param activation_fn: activation of the MLP layers (Tanh for navigation, ReLU for football in the paper)
-    :param recurrent_actor: GRU in the actor (authors' code); ``False`` gives the paper's plain MLP actor
+    :param recurrent: GRUs in the actor and every critic (the paper's and the authors' setting, default); ``False``:
+        the feed-forward networks, no GRU anywhere
+    :param recurrent_actor: GRU in the actor; ``None`` (default): as ``recurrent``. ``False`` with recurrent critics
+        gives the paper's plain MLP actor
     :param normalize_values: one ValueNorm per critic (spec §1.9); values are predicted in normalised space
     :param value_norm_beta: ValueNorm's EMA coefficient
     :param critic_gumbel_noise: draw Gumbel noise in the hypergraph critics at every forward pass (authors' code);
@@ -141,7 +149,8 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         n_agents: int = 1,
         hidden_size: int = 64,
         activation_fn: type[nn.Module] = nn.Tanh,
-        recurrent_actor: bool = True,
+        recurrent: bool = True,
+        recurrent_actor: bool | None = None,
         normalize_values: bool = True,
         value_norm_beta: float = 0.99999,
         critic_gumbel_noise: bool = True,
@@ -151,8 +160,11 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         optimizer_kwargs: dict[str, Any] | None = None,
         **sb3_kwargs: Any,
     ) -> None:
+        if recurrent_actor is None:
+            recurrent_actor = recurrent
         check_bool(
             type(self).__name__,
+            recurrent=recurrent,
             recurrent_actor=recurrent_actor,
             normalize_values=normalize_values,
             critic_gumbel_noise=critic_gumbel_noise,
@@ -168,6 +180,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
             raise ValueError(f"n_agents must be >= 1, got {n_agents}.")
         self.n_agents = n_agents
         self.hidden_size = hidden_size
+        self.recurrent = recurrent
         self.recurrent_actor = recurrent_actor
         self.normalize_values = normalize_values
         self.value_norm_beta = value_norm_beta
@@ -200,6 +213,21 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     def n_scales(self) -> int:
         return len(self.critics)
 
+    @property
+    def critic_state_size(self) -> int:
+        """Width of each critic's state: ``hidden_size`` with GRUs, 0 for feed-forward critics."""
+        return self.hidden_size if self.recurrent else 0
+
+    @property
+    def actor_state_size(self) -> int:
+        """Width of the actor's state: ``hidden_size`` with its GRU, 0 for an MLP actor."""
+        return self.hidden_size if self.recurrent_actor else 0
+
+    @property
+    def feed_forward(self) -> bool:
+        """True when no network has a GRU: the update may run on the valid rows without chunks."""
+        return not (self.recurrent or self.recurrent_actor)
+
     def _build_critics(self) -> nn.ModuleDict:
         """Critic modules by scale name; each maps ``(T, G, N, d), (G, N, H), (T, G, N)`` to values ``(T, G, N)``."""
         raise NotImplementedError
@@ -229,6 +257,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         data.update(
             n_agents=self.n_agents,
             hidden_size=self.hidden_size,
+            recurrent=self.recurrent,
             recurrent_actor=self.recurrent_actor,
             normalize_values=self.normalize_values,
             value_norm_beta=self.value_norm_beta,
@@ -250,12 +279,11 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         return list(self.critics[scale].parameters())
 
     def initial_states(self, n_games: int) -> MultiAgentStates:
-        """Zero recurrent states for ``n_games`` games."""
+        """Zero recurrent states for ``n_games`` games (of width 0 for the networks without a GRU)."""
         n_slots = n_games * self.n_agents
-        actor_width = self.hidden_size if self.recurrent_actor else 0
         return MultiAgentStates(
-            actor=th.zeros(n_slots, actor_width, device=self.device),
-            critic=th.zeros(self.n_scales, n_games, self.n_agents, self.hidden_size, device=self.device),
+            actor=th.zeros(n_slots, self.actor_state_size, device=self.device),
+            critic=th.zeros(self.n_scales, n_games, self.n_agents, self.critic_state_size, device=self.device),
         )
 
     # ------------------------------------------------------------------------------------------------ value space
@@ -612,6 +640,7 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
                     hidden_size=self.hidden_size,
                     activation_fn=self.activation_fn,
                     gumbel_tau=self.gumbel_tau,
+                    recurrent=self.recurrent,
                 )
                 for scale in self.critic_scales
             }
@@ -661,6 +690,7 @@ class MAPPOPolicy(MultiAgentActorCriticPolicy):
             hidden_size=self.hidden_size,
             activation_fn=self.activation_fn,
             spectral_norm=self.spectral_norm,
+            recurrent=self.recurrent,
         )
         return nn.ModuleDict({"critic": critic})
 

@@ -217,6 +217,9 @@ class ScaleCritic(nn.Module):
     :param hidden_size: Width of every layer (64 in the authors' code).
     :param activation_fn: Activation class of the MLP encoder.
     :param gumbel_tau: Gumbel-softmax temperature.
+    :param recurrent: Whether the encoder has its GRU (the paper's critic: True). ``False``: the feed-forward variant,
+        :math:`h_i` is the MLP's output and the critic keeps no state (its states have width 0;
+        ``docs/guide/algorithms.md``, "Feed-forward networks").
     """
 
     def __init__(
@@ -229,6 +232,7 @@ class ScaleCritic(nn.Module):
         hidden_size: int = 64,
         activation_fn: type[nn.Module] = nn.Tanh,
         gumbel_tau: float = 0.5,
+        recurrent: bool = True,
     ) -> None:
         super().__init__()
         if scale not in SCALES:
@@ -239,9 +243,10 @@ class ScaleCritic(nn.Module):
         self.hidden_size = hidden_size
         self.gumbel_tau = gumbel_tau
         self.n_types = {"team": 1, "group": n_edge_types, "individual": n_agents}[scale]
+        self.recurrent = recurrent
 
         self.mlp = MLPEncoder(obs_dim, hidden_size, activation_fn)
-        self.gru = GRULayer(hidden_size, hidden_size)
+        self.gru = GRULayer(hidden_size, hidden_size) if recurrent else None
         self.node2edge_start = FCBlock(hidden_size, hidden_size)
         self.attention = FCBlock(2 * hidden_size, 1)
         self.init_fc = FCBlock(hidden_size, hidden_size)
@@ -263,7 +268,7 @@ class ScaleCritic(nn.Module):
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         :param obs: Critic inputs ``(T, G, N, obs_dim)`` (G games, N agents).
-        :param hidden: GRU states before step 0, ``(G, N, H)``.
+        :param hidden: GRU states before step 0, ``(G, N, H)`` (``(G, N, 0)`` without the GRU).
         :param episode_starts: ``(T, G, N)``, 1 where a new episode starts.
         :param gumbel_noise: Draw Gumbel noise for the edge types (authors: always); False = plain softmax.
         :param gumbel_uniform: The noise's uniform draws, ``(T * G, *self.gumbel_shape)`` (drawn here when ``None``).
@@ -305,14 +310,16 @@ class ScaleCritic(nn.Module):
 
     def _encode(self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         r"""
-        Per-agent MLP + GRU over the G·N agent sequences.
+        Per-agent MLP + GRU over the G·N agent sequences (the MLP alone without the GRU).
 
         :param obs: ``(T, G, N, obs_dim)``.
-        :param hidden: ``(G, N, H)``.
+        :param hidden: ``(G, N, H)`` (``(G, N, 0)`` without the GRU: returned as it is).
         :param episode_starts: ``(T, G, N)``.
         :return: GRU features h ``(T, G, N, H)`` and new states ``(G, N, H)``.
         """
         n_steps, n_games, n_agents = obs.shape[:3]
+        if self.gru is None:
+            return self.mlp(obs), hidden  # (T, G, N, H), no state
         x = self.mlp(obs).reshape(n_steps, n_games * n_agents, self.hidden_size)  # (T, G*N, H)
         out, last = self.gru(
             x,
@@ -481,6 +488,8 @@ class RecurrentValueCritic(nn.Module):
     :param hidden_size: width of the encoder and the GRU
     :param activation_fn: encoder activation
     :param spectral_norm: layers to normalise, any of ``("output", "hidden")``
+    :param recurrent: whether the encoder has its GRU (MAPPO's recurrent critic: True); ``False``: MLP → value head,
+        no state (width 0; ``docs/guide/algorithms.md``, "Feed-forward networks")
     """
 
     def __init__(
@@ -491,6 +500,7 @@ class RecurrentValueCritic(nn.Module):
         hidden_size: int = 64,
         activation_fn: type[nn.Module] = nn.Tanh,
         spectral_norm: tuple[str, ...] = (),
+        recurrent: bool = True,
     ) -> None:
         super().__init__()
         if critic_input not in ("joint", "own"):
@@ -501,9 +511,10 @@ class RecurrentValueCritic(nn.Module):
         self.n_agents = n_agents
         self.critic_input = critic_input
         self.hidden_size = hidden_size
+        self.recurrent = recurrent
         in_dim = obs_dim * n_agents if critic_input == "joint" else obs_dim
         self.mlp = MLPEncoder(in_dim, hidden_size, activation_fn)
-        self.gru = GRULayer(hidden_size, hidden_size)
+        self.gru = GRULayer(hidden_size, hidden_size) if recurrent else None
         self.value_net = nn.Linear(hidden_size, 1)
         nn.init.orthogonal_(self.value_net.weight, gain=1.0)
         nn.init.zeros_(self.value_net.bias)
@@ -524,13 +535,16 @@ class RecurrentValueCritic(nn.Module):
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         :param obs: ``(T, G, N, d)``
-        :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input)
+        :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input); ``(G, N, 0)`` without the
+            GRU (returned as it is)
         :param episode_starts: ``(T, G, N)``
         :param gumbel_noise: unused (same signature as :class:`ScaleCritic`)
         :param gumbel_uniform: unused (same signature as :class:`ScaleCritic`)
         :return: values ``(T, G, N)`` and new states ``(G, N, H)``
         """
         n_steps, n_games, n_agents, _ = obs.shape
+        if self.gru is None:
+            return self._feed_forward_values(obs), hidden
         if self.critic_input == "joint":
             joint = obs.reshape(n_steps, n_games, -1)  # (T, G, N * d)
             latent, new_hidden = self.gru(self.mlp(joint), hidden[:, 0], episode_starts[..., 0])  # (T, G, H), (G, H)
@@ -542,3 +556,16 @@ class RecurrentValueCritic(nn.Module):
         latent, new_hidden = self.gru(self.mlp(flat), flat_hidden, flat_starts)
         values = self.value_net(latent).reshape(n_steps, n_games, n_agents)  # (T, G * N, 1) -> (T, G, N)
         return values, new_hidden.reshape(n_games, n_agents, -1)
+
+    def _feed_forward_values(self, obs: th.Tensor) -> th.Tensor:
+        r"""
+        Values without the GRU: the encoder and the value head, once per game for the joint input.
+
+        :param obs: ``(T, G, N, d)``
+        :return: values ``(T, G, N)``
+        """
+        n_steps, n_games, n_agents, _ = obs.shape
+        if self.critic_input == "joint":
+            joint = obs.reshape(n_steps, n_games, -1)  # (T, G, N * d)
+            return self.value_net(self.mlp(joint)).expand(n_steps, n_games, n_agents)  # (T, G, 1) -> (T, G, N)
+        return self.value_net(self.mlp(obs)).squeeze(-1)  # (T, G, N, 1) -> (T, G, N)

@@ -30,7 +30,7 @@ from stable_baselines3.common.utils import FloatSchedule, explained_variance, ob
 from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
-from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length
+from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
 from sb3_saeir.common.sampling import (
@@ -598,8 +598,8 @@ class MAPPO(OnPolicyAlgorithm):
             n_envs=self.n_envs,
             n_agents=self.n_agents,
             n_scales=self.policy.n_scales,
-            actor_hidden_size=self.policy.hidden_size if self.policy.recurrent_actor else 0,
-            critic_hidden_size=self.policy.hidden_size,
+            actor_hidden_size=self.policy.actor_state_size,
+            critic_hidden_size=self.policy.critic_state_size,
             data_chunk_length=self.data_chunk_length,
             **self.rollout_buffer_kwargs,
         )
@@ -851,8 +851,9 @@ class MAPPO(OnPolicyAlgorithm):
         network_parameters = [self.policy.actor_parameters()] + [self.policy.critic_parameters(scale) for scale in scales]
         for epoch in range(self.n_epochs):
             for samples in self.rollout_buffer.get(self.n_minibatches, self.normalize_advantage):
-                # the networks run on the blocks grouped by valid length: no padded row is computed
-                groups = split_by_valid_length(samples)
+                # the networks run on the blocks grouped by valid length (feed-forward networks: on all valid rows at
+                # once): no padded row is computed
+                groups = [valid_rows(samples)] if self.policy.feed_forward else split_by_valid_length(samples)
                 n_valid = samples.mask.sum() * self.policy.n_agents  # valid (step, block, agent) rows
                 # W_K-mixed advantages: the weights from the valid rows (n_valid_rows * N, K) -> (K,)
                 weights = scale_advantage_weights(samples.advantages[samples.mask].reshape(-1, self.policy.n_scales))
@@ -968,8 +969,8 @@ class MAPPO(OnPolicyAlgorithm):
         loss_sums = []
         for group in groups:
             part = group.samples
-            # the group's rows of the draws: (length, B_g, E, T_K) -> (length * B_g, E, T_K), rows (step, block)
-            part_uniform = None if uniform is None else uniform[: group.length, group.blocks].flatten(0, 1)
+            # the group's rows of the draws: (L, B, E, T_K) -> (length * B_g, E, T_K), rows (step, block)
+            part_uniform = None if uniform is None else group.take(uniform)
             values = self.policy.evaluate_critic(
                 k, part.observations, part.critic_states[k], part.episode_starts, part_uniform
             )  # (length, B_g, N)

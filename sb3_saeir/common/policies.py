@@ -8,6 +8,7 @@ observations). Every critic scale sees the N agents of a game together: its inpu
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -24,6 +25,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from sb3_saeir.common.compilation import compile_network, mark_dynamic
 from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm
 from sb3_saeir.common.type_aliases import MultiAgentStates
@@ -185,6 +187,9 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         self.normalize_values = normalize_values
         self.value_norm_beta = value_norm_beta
         self.critic_gumbel_noise = critic_gumbel_noise
+        self.compile_backend: str | None = None
+        self._compiled_actor: Callable[..., Any] | None = None
+        self._compiled_critics: dict[str, Callable[..., Any]] = {}
         if optimizer_kwargs is None:
             optimizer_kwargs = default_optimizer_kwargs(optimizer_class)
         super().__init__(
@@ -266,6 +271,20 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         data.pop("net_arch", None)
         return data
 
+    def set_compile(self, backend: str | None) -> None:
+        """Run the forward of the actor's trunk and of every critic through ``torch.compile`` (in the rollout, in
+        ``predict`` and in the update), or eagerly again (``None``). The modules are not wrapped: the state-dict keys
+        do not change (:mod:`sb3_saeir.common.compilation`; the algorithms' ``compile`` switch calls this).
+
+        :param backend: a ``torch.compile`` backend (``"inductor"``), or ``None`` for eager
+        """
+        self.compile_backend = backend
+        if backend is None:
+            self._compiled_actor, self._compiled_critics = None, {}
+            return
+        self._compiled_actor = compile_network(self.actor.forward, backend)
+        self._compiled_critics = {name: compile_network(critic.forward, backend) for name, critic in self.critics.items()}
+
     # ------------------------------------------------------------------------------------------------ parameters
     def actor_parameters(self) -> list[nn.Parameter]:
         """Parameters of the actor (trunk, action head, log std)."""
@@ -310,17 +329,49 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     ) -> tuple[th.Tensor, th.Tensor | None]:
         """obs ``(T, B, d)``, states ``(B, H)``, episode_starts ``(T, B)`` -> latent ``(T, B, H)``, new states."""
         hidden = states if self.recurrent_actor else None
-        return self.actor(obs, hidden, episode_starts)
+        if self._compiled_actor is None:
+            return self.actor(obs, hidden, episode_starts)
+        mark_dynamic(obs, 1)
+        mark_dynamic(hidden, 0)
+        mark_dynamic(episode_starts, 1)
+        return self._compiled_actor(obs, hidden, episode_starts)
+
+    def _run_critic(
+        self,
+        k: int,
+        obs: th.Tensor,
+        states: th.Tensor,
+        episode_starts: th.Tensor,
+        gumbel_noise: bool,
+        gumbel_uniform: th.Tensor | None,
+    ) -> tuple[th.Tensor, th.Tensor]:
+        """Critic scale ``k`` on obs ``(T, G, N, d)``, states ``(G, N, H)``, episode_starts ``(T, G, N)`` and its Gumbel
+        draws ``(T * G, E, T_K)`` (compiled when :meth:`set_compile` asked for it) -> values ``(T, G, N)``, new states."""
+        name = self.scales[k]
+        compiled = self._compiled_critics.get(name)
+        if compiled is None:
+            return self.critics[name](obs, states, episode_starts, gumbel_noise=gumbel_noise, gumbel_uniform=gumbel_uniform)
+        mark_dynamic(obs, 1)
+        mark_dynamic(states, 0)
+        mark_dynamic(episode_starts, 1)
+        mark_dynamic(gumbel_uniform, 0)
+        return compiled(obs, states, episode_starts, gumbel_noise=gumbel_noise, gumbel_uniform=gumbel_uniform)
 
     def _critic_values(
         self, obs: th.Tensor, states: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool | None = None
     ) -> tuple[th.Tensor, th.Tensor]:
         """obs ``(T, G, N, d)``, states ``(K, G, N, H)``, episode_starts ``(T, G, N)`` -> values ``(T, G, N, K)``,
-        new states ``(K, G, N, H)``."""
+        new states ``(K, G, N, H)``.
+
+        Each critic's Gumbel draws are made here, before it runs, from the global generator as the critic would draw
+        them itself (the same numbers; outside compiled code)."""
         noise = self.critic_gumbel_noise if gumbel_noise is None else gumbel_noise
+        n_steps, n_games = obs.shape[:2]
         values, new_states = [], []
-        for k, critic in enumerate(self.critics.values()):
-            value, state = critic(obs, states[k], episode_starts, gumbel_noise=noise)
+        for k in range(self.n_scales):
+            uniform = self.draw_gumbel_uniform(k, n_steps, n_games) if noise else None  # (T, G, E, T_K)
+            flat_uniform = None if uniform is None else uniform.flatten(0, 1)  # (T * G, E, T_K), rows (step, game)
+            value, state = self._run_critic(k, obs, states[k], episode_starts, noise, flat_uniform)
             values.append(value)
             new_states.append(state)
         return th.stack(values, dim=-1), th.stack(new_states)
@@ -438,15 +489,13 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         :return: normalised values ``(L, B, N)``
         """
         n_steps, n_blocks, n_agents = obs.shape[:3]
-        critic = list(self.critics.values())[k]
+        if gumbel_uniform is None and self.critic_gumbel_noise:
+            # drawn here rather than in the critic (the same numbers), outside any compiled code
+            uniform = self.draw_gumbel_uniform(k, n_steps, n_blocks)  # (L, B, E, T_K) or None
+            gumbel_uniform = None if uniform is None else uniform.flatten(0, 1)  # (L * B, E, T_K)
         # (L, B, N, *obs_shape) -> (L, B, N, d)
-        values, _ = critic(
-            obs.reshape(n_steps, n_blocks, n_agents, -1),
-            critic_states,
-            episode_starts,
-            gumbel_noise=self.critic_gumbel_noise,
-            gumbel_uniform=gumbel_uniform,
-        )
+        obs = obs.reshape(n_steps, n_blocks, n_agents, -1)
+        values, _ = self._run_critic(k, obs, critic_states, episode_starts, self.critic_gumbel_noise, gumbel_uniform)
         return values
 
     def draw_gumbel_uniform(self, k: int, n_steps: int, n_blocks: int) -> th.Tensor | None:

@@ -9,10 +9,12 @@ IJCAI-24.
 """
 
 import itertools
+import typing
 from typing import Literal
 
 import torch as th
 from torch import nn
+from torch.nn import functional as F
 
 from sb3_saeir.common.hypergraph import SCALES, build_incidence, edge_to_node, gumbel_softmax, node_to_edge
 
@@ -101,7 +103,9 @@ class GRULayer(nn.Module):
     One-layer GRU with episode resets and an output LayerNorm (MAPPO's ``RNNLayer``, spec §1.2 step 4).
 
     Before step t the hidden state is multiplied by ``1 - episode_starts[t]``. The GRU runs in one call over each
-    stretch of steps without any reset, which gives the same result as a step-by-step loop.
+    stretch of steps without any reset, which gives the same result as a step-by-step loop. Inside ``torch.compile``
+    (the algorithms' ``compile`` switch) it runs as that step loop, written out (:meth:`step_loop`) so that the
+    compiler fuses each step's gate arithmetic; the same maths up to float rounding.
     GRU weights: orthogonal; biases: 0.
 
     :param in_dim: Input size.
@@ -126,6 +130,8 @@ class GRULayer(nn.Module):
         :return: LayerNorm'ed outputs ``(T, B, H)`` and the raw last hidden state ``(B, H)``.
         """
         keep = 1.0 - episode_starts.to(x.dtype)  # (T, B)
+        if th.compiler.is_compiling():
+            return self.step_loop(x, hidden, keep)
         if x.shape[0] == 1:
             # one step (the rollout): no split to find, so no device-to-host sync of the reset steps
             boundaries = [0, 1]
@@ -141,6 +147,34 @@ class GRULayer(nn.Module):
             outputs.append(out)
         # one stretch (no reset after t = 0, the usual case): no concatenation copy
         return self.norm(outputs[0] if len(outputs) == 1 else th.cat(outputs)), hidden
+
+    def step_loop(self, x: th.Tensor, hidden: th.Tensor, keep: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        The GRU as a loop over steps with ``nn.GRU``'s parameters and formulas (PyTorch's gate order r, z, n), the
+        state reset by multiplying it with ``keep[t]`` at every step: no data-dependent split, so ``torch.compile``
+        traces it into one graph.
+
+        :param x: Input sequence ``(T, B, in_dim)``.
+        :param hidden: Hidden state before step 0, ``(B, H)``.
+        :param keep: ``1 - episode_starts``, ``(T, B)``.
+        :return: LayerNorm'ed outputs ``(T, B, H)`` and the raw last hidden state ``(B, H)``.
+        """
+        gru = self.gru
+        weight_ih, bias_ih = typing.cast(th.Tensor, gru.weight_ih_l0), typing.cast(th.Tensor, gru.bias_ih_l0)
+        weight_hh, bias_hh = typing.cast(th.Tensor, gru.weight_hh_l0), typing.cast(th.Tensor, gru.bias_hh_l0)
+        input_gates = F.linear(x, weight_ih, bias_ih)  # (T, B, 3H), every step at once
+        outputs = []
+        for step in range(x.shape[0]):
+            hidden = hidden * keep[step].unsqueeze(-1)  # (B, H)
+            hidden_gates = F.linear(hidden, weight_hh, bias_hh)  # (B, 3H)
+            input_r, input_z, input_n = input_gates[step].chunk(3, dim=-1)  # 3 x (B, H)
+            hidden_r, hidden_z, hidden_n = hidden_gates.chunk(3, dim=-1)  # 3 x (B, H)
+            reset = th.sigmoid(input_r + hidden_r)
+            update = th.sigmoid(input_z + hidden_z)
+            candidate = th.tanh(input_n + reset * hidden_n)
+            hidden = candidate + update * (hidden - candidate)  # (1 - z) * n + z * h
+            outputs.append(hidden)
+        return self.norm(th.stack(outputs)), hidden  # (T, B, H), (B, H)
 
 
 class ActorNetwork(nn.Module):

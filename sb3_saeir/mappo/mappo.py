@@ -32,6 +32,7 @@ from torch.nn import functional as F
 
 from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means
+from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
 from sb3_saeir.common.sampling import (
     GroupRandomStreams,
@@ -385,6 +386,11 @@ class MAPPO(OnPolicyAlgorithm):
         (default): on whenever the env allows it (games in two or more workers, no wrapper that changes steps);
         ``True``: on, an error if the env does not allow it; ``False``: the synchronous loop. Same maths; the random
         draws are made group by group (same seed, same run; ``docs/guide/performance.md``)
+    :param compile: run the forward of the actor and of every critic through ``torch.compile`` (rollout, ``predict``
+        and the update, whose backward is compiled with it): ``True`` for the inductor backend, or a backend name.
+        Where no C++ compiler is found, one warning line says so and the networks run eagerly. Not saved with the
+        model (a setting of the machine, as ``device``: ``load(path, compile=True)`` compiles a loaded model). The same
+        maths up to float rounding; ``docs/guide/performance.md``, "Compiled networks", has when it pays
     :param rollout_buffer_class: rollout buffer class (a
         :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer` subclass; default that class)
     :param rollout_buffer_kwargs: extra keyword arguments of the rollout buffer
@@ -432,6 +438,7 @@ class MAPPO(OnPolicyAlgorithm):
         huber_delta: float = 10.0,
         target_kl: float | None = None,
         double_buffered: bool | str = "auto",
+        compile: bool | str = False,
         rollout_buffer_class: type[GroupedRecurrentRolloutBuffer] | None = None,
         rollout_buffer_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
@@ -443,6 +450,7 @@ class MAPPO(OnPolicyAlgorithm):
         _init_setup_model: bool = True,
     ) -> None:
         check_env_argument(type(self).__name__, env)
+        check_compile_setting(type(self).__name__, compile)
         check_ranges(
             type(self).__name__,
             learning_rate=learning_rate,
@@ -502,6 +510,7 @@ class MAPPO(OnPolicyAlgorithm):
         self.normalize_advantage = normalize_advantage
         self.target_kl = target_kl
         self.double_buffered = double_buffered
+        self.compile = compile
         self.n_minibatches = n_minibatches
         self.data_chunk_length = data_chunk_length
         self.intrinsic_reward = intrinsic_reward
@@ -582,6 +591,7 @@ class MAPPO(OnPolicyAlgorithm):
             )
         self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
         self.policy = self.policy.to(self.device)
+        self.policy.set_compile(resolve_compile_backend(type(self).__name__, self.compile, self.device))
         if self.rollout_buffer_class is None:
             self.rollout_buffer_class = GroupedRecurrentRolloutBuffer
         if not issubclass(self.rollout_buffer_class, GroupedRecurrentRolloutBuffer):
@@ -1045,7 +1055,8 @@ class MAPPO(OnPolicyAlgorithm):
             raise
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards"]
+        # compile is a setting of the machine, as device: a model saved compiled loads eager unless load(compile=True)
+        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards", "compile"]
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
         n_agents = self._check_env(env if isinstance(env, VecEnv) else self._wrap_env(env, self.verbose))  # type: ignore[arg-type]

@@ -3,6 +3,7 @@
     OMP_NUM_THREADS=1 python benchmarks/throughput.py --task cn-sparse-n3 --n-games 128 --algos saeir_ppo mappo
     python benchmarks/throughput.py --algos saeir_ppo --threads 2          # the update with 2 torch threads
     python benchmarks/throughput.py --algos saeir_ppo --device cuda        # on a GPU machine (not run on CPU-only CI)
+    OMP_NUM_THREADS=1 python benchmarks/throughput.py --algos mappo --policy-kwargs "dict(recurrent=False)"  # feed-forward
 
 Each method trains with its packaged config (``zoo_configs/<algo>.yml``: 25-step rollouts, 10 epochs, one minibatch,
 hidden size 64) except the number of games, in a fresh process of its own (so that its peak RSS is its own). After
@@ -140,8 +141,12 @@ def measure_method(
     threads: int,
     backend: str | None = None,
     num_cpus: int | None = None,
+    policy_kwargs: str | None = None,
 ) -> dict:
     """Train ``algo`` in this process and return its figures (run in a fresh process per method).
+
+    :param policy_kwargs: policy arguments merged into the config's (a ``"dict(...)"`` string, e.g.
+        ``"dict(recurrent=False)"``); ``None``: the config's alone
 
     :return: agent-steps/s, seconds per phase, update GFLOP and GFLOP/s, the matmul GFLOP/s, peak RSS (MiB)
     """
@@ -164,7 +169,16 @@ def measure_method(
         if num_cpus is not None:
             env_kwargs["num_cpus"] = num_cpus
         env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, **env_kwargs)
-    model, env, callbacks, _ = build_model(algo, task, n_games=n_games, seed=seed, env=env, device=device)
+    hyperparams = None
+    if policy_kwargs is not None:
+        from sb3_saeir.config import load_hyperparams, parse_policy_kwargs
+
+        hyperparams = load_hyperparams(algo, task)
+        merged = {**parse_policy_kwargs(hyperparams.get("policy_kwargs")), **parse_policy_kwargs(policy_kwargs)}
+        hyperparams["policy_kwargs"] = merged
+    model, env, callbacks, _ = build_model(
+        algo, task, hyperparams=hyperparams, n_games=n_games, seed=seed, env=env, device=device
+    )
     policy = model.policy
     policy.forward = timer.wrap("inference", policy.forward)  # type: ignore[method-assign]
     policy.predict_values = timer.wrap("inference", policy.predict_values)  # type: ignore[method-assign]
@@ -267,6 +281,11 @@ def main() -> None:
         default=None,
         help="env worker processes (default: the config's; 0: every game in this process). Training methods only",
     )
+    parser.add_argument(
+        "--policy-kwargs",
+        default=None,
+        help='policy arguments merged into each config\'s, e.g. "dict(recurrent=False)" (the feed-forward networks)',
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     if args.warmup < 1:
@@ -277,6 +296,7 @@ def main() -> None:
         f"task {args.task}, {args.n_games} games, {args.iterations} timed iterations after {args.warmup}, "
         f"{args.threads} thread(s), device {args.device}, env backend {args.backend or 'default'}, "
         f"env workers {'config' if args.num_cpus is None else args.num_cpus}, torch {th.__version__}"
+        + (f", policy kwargs {args.policy_kwargs}" if args.policy_kwargs else "")
     )
     header = (
         f"{'method':>10} {'agent-steps/s':>13} {'env%':>5} {'inf%':>5} {'upd%':>5} {'bonus%':>6} {'other%':>6} "
@@ -297,6 +317,7 @@ def main() -> None:
                 args.threads,
                 args.backend,
                 args.num_cpus,
+                args.policy_kwargs,
             ),
         )
         wall, phases = result["wall"], result["phases"]

@@ -157,6 +157,8 @@ class Experiment:
     def load(self, path: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> BaseAlgorithm:
         """Load a saved model of this method onto the training env (built if needed), to continue training it.
 
+        The config's ``compile`` (not saved with a model: a setting of the machine) applies to the loaded model.
+
         :param path: the model zip
         :param device: torch device
         :param tensorboard_log: tensorboard log folder
@@ -164,7 +166,8 @@ class Experiment:
         if self.env is None:
             self.env = self.make_env()
         self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
-        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log)
+        settings = {"compile": self.hyperparams["compile"]} if "compile" in self.hyperparams else {}
+        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log, **settings)
         self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
         return self.model
 

@@ -184,6 +184,8 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
         overrides["num_cpus"] = args.num_cpus
     if args.double_buffered is not None:
         overrides["double_buffered"] = DOUBLE_BUFFERED_FLAGS[args.double_buffered]
+    if getattr(args, "compile", None) is not None:
+        overrides["compile"] = args.compile == "on"
     check_hyperparams(args.algo, hyperparams, overrides)
     resolved = {**hyperparams, **overrides}
     check_folder("tensorboard_log", resolved.get("tensorboard_log"))
@@ -193,7 +195,9 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
 # Values of --double-buffered -> the algorithms' double_buffered.
 DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}
 # Command-line options that may change between a run and its --resume: they do not change what is trained.
-RESUME_FREE_OPTIONS = ("resume", "progress", "verbose")
+RESUME_FREE_OPTIONS = ("resume", "progress", "verbose", "compile")
+# Config keys that may change between a run and its --resume: settings of the machine, not of what is trained.
+RESUME_FREE_CONFIG_KEYS = ("compile",)
 # Options of --optimize only, not part of a training run.
 OPTIMIZE_OPTIONS = ("optimize", "n_trials", "n_jobs", "sampler", "pruner", "n_evaluations", "storage", "study_name")
 # Flags of the options whose flag is not "--" + the name with dashes.
@@ -290,7 +294,8 @@ def resume_differences(
     ``"<flag> <old> -> <new>"`` and ``"config <key> <old> -> <new>"``.
 
     An option the run's ``args.yml`` lacks (an older version) counts as its default; ``--seed -1`` takes the run's
-    seed; :data:`RESUME_FREE_OPTIONS`, the ``--optimize`` options and ``ignored`` are not compared.
+    seed; :data:`RESUME_FREE_OPTIONS`, :data:`RESUME_FREE_CONFIG_KEYS`, the ``--optimize`` options and ``ignored`` are
+    not compared.
 
     :param stored_args: the run's ``args.yml``
     :param stored_config: the run's ``config.yml``
@@ -312,7 +317,7 @@ def resume_differences(
     differences += [
         f"config {key} {json.dumps(stored_config.get(key))} -> {json.dumps(new_config.get(key))}"
         for key in sorted(set(stored_config) | set(new_config))
-        if stored_config.get(key) != new_config.get(key)
+        if stored_config.get(key) != new_config.get(key) and key not in RESUME_FREE_CONFIG_KEYS
     ]
     return differences
 
@@ -709,6 +714,13 @@ def make_parser() -> argparse.ArgumentParser:
         default=None,
         help="double-buffered sampling with env workers (overrides the config's double_buffered; default auto: on when "
         "num_cpus >= 2)",
+    )
+    parser.add_argument(
+        "--compile",
+        choices=["on", "off"],
+        default=None,
+        help="torch.compile of the networks (overrides the config's compile; needs a C++ compiler; pays off on long "
+        "runs: docs/guide/performance.md); may change at --resume",
     )
     parser.add_argument("--progress", action="store_true", help="show a progress bar")
     parser.add_argument("-params", "--hyperparams", dest="params", nargs="+", default=None, help="overrides key:value")

@@ -1,25 +1,31 @@
 """The PPO update as computed (network by network, padded rows skipped, the Gumbel draws handed to each group of
 blocks) against a hand-written reference: the whole padded minibatch through ``evaluate_actions``, masked means, one
 backward of the summed loss. Values, log-probs, losses and every gradient agree within 1e-5 (the sums run in
-another order), on the golden tests' setup (25-step rollouts, chunks of 10: a padded last chunk of 5 steps)."""
+another order), on the golden tests' setup (25-step rollouts, chunks of 10: a padded last chunk of 5 steps). The
+feed-forward networks (``recurrent=False``) run on every valid row at once (``valid_rows``) and agree the same way."""
 
 import numpy as np
 import pytest
 import torch as th
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
-from sb3_saeir.common.buffers import split_by_valid_length
+from sb3_saeir.common.buffers import split_by_valid_length, valid_rows
 from sb3_saeir.mappo.mappo import clipped_value_loss, scale_advantage_weights
 
 TOLERANCE = 1e-5  # measured: at most 5e-7 (values, log-probs, losses, gradients)
-METHODS = {"saeir_ppo": (SAEIR_PPO, "MSHGPolicy"), "mappo": (MAPPO, "MAPPOPolicy")}
+METHODS = {
+    "saeir_ppo": (SAEIR_PPO, "MSHGPolicy", {}),
+    "mappo": (MAPPO, "MAPPOPolicy", {}),
+    "saeir_ppo_feed_forward": (SAEIR_PPO, "MSHGPolicy", {"recurrent": False}),
+    "mappo_feed_forward": (MAPPO, "MAPPOPolicy", {"recurrent": False}),
+}
 
 
 @pytest.fixture(scope="module", params=sorted(METHODS))
 def model_and_samples(request):
-    algo, policy = METHODS[request.param]
+    algo, policy, policy_kwargs = METHODS[request.param]
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=3)
-    model = algo(policy, env, n_steps=25, seed=3, n_epochs=1, policy_kwargs={"hidden_size": 16})
+    model = algo(policy, env, n_steps=25, seed=3, n_epochs=1, policy_kwargs={"hidden_size": 16, **policy_kwargs})
     model.learn(25 * env.num_envs)  # one rollout and update: trained parameters, a full buffer
     samples = next(model.rollout_buffer.get(1, model.normalize_advantage))
     assert not bool(samples.mask.all())  # the setup has padded rows
@@ -74,8 +80,8 @@ def test_the_update_matches_the_padded_reference(model_and_samples):
 
     policy.load_state_dict(before)
     th.manual_seed(11)  # the same Gumbel draws: the actor draws none, each critic its own in scale order
-    groups = split_by_valid_length(samples)
-    assert [group.length for group in groups] == [10, 5]
+    groups = [valid_rows(samples)] if policy.feed_forward else split_by_valid_length(samples)
+    assert [group.length for group in groups] == ([1] if policy.feed_forward else [10, 5])
     n_valid = samples.mask.sum() * policy.n_agents
     weights = scale_advantage_weights(samples.advantages[samples.mask].reshape(-1, policy.n_scales))
     computed_policy_loss, computed_entropy_loss, _, _ = model._actor_losses(groups, weights, n_valid, clip_range)

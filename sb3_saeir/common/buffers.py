@@ -25,19 +25,32 @@ def n_blocks(n_steps: int, n_games: int, data_chunk_length: int) -> int:
 
 
 class ChunkGroup(NamedTuple):
-    """The blocks of a minibatch with the same number of valid rows, cut to those rows (:func:`split_by_valid_length`).
+    """The blocks of a minibatch with the same number of valid rows, cut to those rows (:func:`split_by_valid_length`),
+    or every valid row of a minibatch as one step (:func:`valid_rows`, for feed-forward networks).
 
-    :param blocks: the blocks' positions in the minibatch, ``(B_g,)``
+    :param blocks: the blocks' positions in the minibatch, ``(B_g,)`` (for :func:`valid_rows`: the block of each row)
     :param samples: their data, without padded rows: ``observations (length, B_g, N, d)`` and so on
+    :param rows: for :func:`valid_rows`, the minibatch's mask ``(L, B)`` that selected the rows; ``None`` otherwise
     """
 
     blocks: th.Tensor
     samples: GroupedRecurrentSamples
+    rows: th.Tensor | None = None
 
     @property
     def length(self) -> int:
-        """Valid rows of each block of the group (its chunk length)."""
+        """Valid rows of each block of the group (its chunk length; 1 for :func:`valid_rows`)."""
         return int(self.samples.mask.shape[0])
+
+    def take(self, per_row: th.Tensor) -> th.Tensor:
+        """The group's rows of a per-row tensor of the whole minibatch, in the group's (step, block) order.
+
+        :param per_row: ``(L, B, ...)``, one entry per row of the padded minibatch (e.g. a critic's Gumbel draws)
+        :return: ``(length * B_g, ...)``
+        """
+        if self.rows is not None:
+            return per_row[self.rows]  # (L, B, ...) -> (R, ...), rows in (step, block) order
+        return per_row[: self.length, self.blocks].flatten(0, 1)  # (length, B_g, ...) -> (length * B_g, ...)
 
 
 def split_by_valid_length(samples: GroupedRecurrentSamples) -> list[ChunkGroup]:
@@ -76,6 +89,40 @@ def split_by_valid_length(samples: GroupedRecurrentSamples) -> list[ChunkGroup]:
     return groups
 
 
+def valid_rows(samples: GroupedRecurrentSamples) -> ChunkGroup:
+    """Every valid row of a minibatch as one step of R blocks, for networks without a GRU (no chunk, no state).
+
+    A feed-forward network gives the same output for a row wherever it sits, so the update runs it once per minibatch
+    on the R valid (step, block) rows, instead of once per group of chunk length (:func:`split_by_valid_length`).
+    A row keeps its game's N agents together (the critics' hypergraphs are built over them).
+
+    :param samples: a minibatch of :meth:`GroupedRecurrentRolloutBuffer.get`
+    :return: one group: ``observations (1, R, N, d)`` and so on, ``blocks (R,)`` the block of each row
+    """
+    mask = samples.mask  # (L, B)
+    n_steps, n_blocks = mask.shape
+    row_blocks = th.arange(n_blocks, device=mask.device).expand(n_steps, n_blocks)[mask]  # (R,)
+
+    def rows(per_row: th.Tensor) -> th.Tensor:
+        return per_row[mask].unsqueeze(0)  # (L, B, ...) -> (1, R, ...)
+
+    part = GroupedRecurrentSamples(
+        observations=rows(samples.observations),
+        actions=rows(samples.actions),
+        old_log_prob=rows(samples.old_log_prob),
+        old_values=rows(samples.old_values),
+        advantages=rows(samples.advantages),
+        returns=rows(samples.returns),
+        episode_starts=rows(samples.episode_starts),
+        actor_states=samples.actor_states[row_blocks],  # (B, N, H) -> (R, N, H)
+        critic_states=samples.critic_states[:, row_blocks],  # (K, B, N, H) -> (K, R, N, H)
+        mask=rows(mask),
+        game_indices=samples.game_indices[row_blocks],
+        time_indices=rows(samples.time_indices),
+    )
+    return ChunkGroup(row_blocks, part, rows=mask)
+
+
 class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     """Rollout buffer that keeps the agents of a game together, for critics over a game's agents.
 
@@ -107,7 +154,7 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     :param n_agents: agents per game
     :param n_scales: number of critics K
     :param actor_hidden_size: actor GRU width (0: MLP actor)
-    :param critic_hidden_size: critic GRU width
+    :param critic_hidden_size: critic GRU width (0: feed-forward critics)
     :param data_chunk_length: L, steps per training chunk
     """
 
@@ -190,7 +237,8 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
         self.log_probs[self.pos] = log_prob.detach().cpu().numpy().reshape(self.n_envs)
         if self.actor_hidden_size:
             self.actor_states[self.pos] = actor_states.detach().cpu().numpy()
-        self.critic_states[self.pos] = critic_states.detach().cpu().numpy()
+        if self.critic_hidden_size:
+            self.critic_states[self.pos] = critic_states.detach().cpu().numpy()
         self.pos += 1
         if self.pos == self.buffer_size:
             self.full = True

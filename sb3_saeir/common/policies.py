@@ -8,6 +8,7 @@ observations). Every critic scale sees the N agents of a game together: its inpu
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -24,6 +25,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from sb3_saeir.common.compilation import compile_network, mark_dynamic
 from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm, check_hidden_size
 from sb3_saeir.common.type_aliases import MultiAgentStates
@@ -77,7 +79,7 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
         if key not in _SB3_NOOP_VALUES:
             raise ValueError(
                 f"{policy_name}: unknown policy argument {key!r}. Valid arguments: hidden_size, activation_fn, "
-                "recurrent_actor, normalize_values, value_norm_beta, critic_gumbel_noise, log_std_init, "
+                "recurrent, recurrent_actor, normalize_values, value_norm_beta, critic_gumbel_noise, log_std_init, "
                 "optimizer_class, optimizer_kwargs, and the critic's own options (see the policy's docstring)."
             )
         if _is_noop(key, value):
@@ -112,13 +114,21 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     (orthogonal init, gain 0.01). All networks are trained by one Adam optimizer; since they share no parameters this
     equals one Adam per network, and gradients are clipped per network by the algorithm.
 
+    ``recurrent=False`` builds every network without its GRU (the feed-forward variant, as the MAPPO authors'
+    ``use_recurrent_policy=False`` and BenchMARL's default MAPPO; not the paper's setting): the policy keeps no state
+    (its states have width 0) and the update runs each network once per minibatch on its valid rows, without chunks
+    (``docs/guide/algorithms.md``, "Feed-forward networks").
+
     :param observation_space: one agent's observation space
     :param action_space: one agent's action space
     :param lr_schedule: learning rate schedule
     :param n_agents: agents per game (N); set by the algorithm from the vec env
     :param hidden_size: width of every hidden layer and GRU (64 in the paper's code)
     :param activation_fn: activation of the MLP layers (Tanh for navigation, ReLU for football in the paper)
-    :param recurrent_actor: GRU in the actor (authors' code); ``False`` gives the paper's plain MLP actor
+    :param recurrent: GRUs in the actor and every critic (the paper's and the authors' setting, default); ``False``:
+        the feed-forward networks, no GRU anywhere
+    :param recurrent_actor: GRU in the actor; ``None`` (default): as ``recurrent``. ``False`` with recurrent critics
+        gives the paper's plain MLP actor
     :param normalize_values: one ValueNorm per critic (spec §1.9); values are predicted in normalised space
     :param value_norm_beta: ValueNorm's EMA coefficient
     :param critic_gumbel_noise: draw Gumbel noise in the hypergraph critics at every forward pass (authors' code);
@@ -141,7 +151,8 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         n_agents: int = 1,
         hidden_size: int = 64,
         activation_fn: type[nn.Module] = nn.Tanh,
-        recurrent_actor: bool = True,
+        recurrent: bool = True,
+        recurrent_actor: bool | None = None,
         normalize_values: bool = True,
         value_norm_beta: float = 0.99999,
         critic_gumbel_noise: bool = True,
@@ -152,8 +163,11 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         **sb3_kwargs: Any,
     ) -> None:
         hidden_size = check_hidden_size(type(self).__name__, hidden_size)
+        if recurrent_actor is None:
+            recurrent_actor = recurrent
         check_bool(
             type(self).__name__,
+            recurrent=recurrent,
             recurrent_actor=recurrent_actor,
             normalize_values=normalize_values,
             critic_gumbel_noise=critic_gumbel_noise,
@@ -169,10 +183,14 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
             raise ValueError(f"n_agents must be >= 1, got {n_agents}.")
         self.n_agents = n_agents
         self.hidden_size = hidden_size
+        self.recurrent = recurrent
         self.recurrent_actor = recurrent_actor
         self.normalize_values = normalize_values
         self.value_norm_beta = value_norm_beta
         self.critic_gumbel_noise = critic_gumbel_noise
+        self.compile_backend: str | None = None
+        self._compiled_actor: Callable[..., Any] | None = None
+        self._compiled_critics: dict[str, Callable[..., Any]] = {}
         if optimizer_kwargs is None:
             optimizer_kwargs = default_optimizer_kwargs(optimizer_class)
         super().__init__(
@@ -200,6 +218,21 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     @property
     def n_scales(self) -> int:
         return len(self.critics)
+
+    @property
+    def critic_state_size(self) -> int:
+        """Width of each critic's state: ``hidden_size`` with GRUs, 0 for feed-forward critics."""
+        return self.hidden_size if self.recurrent else 0
+
+    @property
+    def actor_state_size(self) -> int:
+        """Width of the actor's state: ``hidden_size`` with its GRU, 0 for an MLP actor."""
+        return self.hidden_size if self.recurrent_actor else 0
+
+    @property
+    def feed_forward(self) -> bool:
+        """True when no network has a GRU: the update may run on the valid rows without chunks."""
+        return not (self.recurrent or self.recurrent_actor)
 
     def _build_critics(self) -> nn.ModuleDict:
         """Critic modules by scale name; each maps ``(T, G, N, d), (G, N, H), (T, G, N)`` to values ``(T, G, N)``."""
@@ -230,6 +263,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         data.update(
             n_agents=self.n_agents,
             hidden_size=self.hidden_size,
+            recurrent=self.recurrent,
             recurrent_actor=self.recurrent_actor,
             normalize_values=self.normalize_values,
             value_norm_beta=self.value_norm_beta,
@@ -237,6 +271,20 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         )
         data.pop("net_arch", None)
         return data
+
+    def set_compile(self, backend: str | None) -> None:
+        """Run the forward of the actor's trunk and of every critic through ``torch.compile`` (in the rollout, in
+        ``predict`` and in the update), or eagerly again (``None``). The modules are not wrapped: the state-dict keys
+        do not change (:mod:`sb3_saeir.common.compilation`; the algorithms' ``compile`` switch calls this).
+
+        :param backend: a ``torch.compile`` backend (``"inductor"``), or ``None`` for eager
+        """
+        self.compile_backend = backend
+        if backend is None:
+            self._compiled_actor, self._compiled_critics = None, {}
+            return
+        self._compiled_actor = compile_network(self.actor.forward, backend)
+        self._compiled_critics = {name: compile_network(critic.forward, backend) for name, critic in self.critics.items()}
 
     # ------------------------------------------------------------------------------------------------ parameters
     def actor_parameters(self) -> list[nn.Parameter]:
@@ -251,12 +299,11 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         return list(self.critics[scale].parameters())
 
     def initial_states(self, n_games: int) -> MultiAgentStates:
-        """Zero recurrent states for ``n_games`` games."""
+        """Zero recurrent states for ``n_games`` games (of width 0 for the networks without a GRU)."""
         n_slots = n_games * self.n_agents
-        actor_width = self.hidden_size if self.recurrent_actor else 0
         return MultiAgentStates(
-            actor=th.zeros(n_slots, actor_width, device=self.device),
-            critic=th.zeros(self.n_scales, n_games, self.n_agents, self.hidden_size, device=self.device),
+            actor=th.zeros(n_slots, self.actor_state_size, device=self.device),
+            critic=th.zeros(self.n_scales, n_games, self.n_agents, self.critic_state_size, device=self.device),
         )
 
     # ------------------------------------------------------------------------------------------------ value space
@@ -283,17 +330,49 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     ) -> tuple[th.Tensor, th.Tensor | None]:
         """obs ``(T, B, d)``, states ``(B, H)``, episode_starts ``(T, B)`` -> latent ``(T, B, H)``, new states."""
         hidden = states if self.recurrent_actor else None
-        return self.actor(obs, hidden, episode_starts)
+        if self._compiled_actor is None:
+            return self.actor(obs, hidden, episode_starts)
+        mark_dynamic(obs, 1)
+        mark_dynamic(hidden, 0)
+        mark_dynamic(episode_starts, 1)
+        return self._compiled_actor(obs, hidden, episode_starts)
+
+    def _run_critic(
+        self,
+        k: int,
+        obs: th.Tensor,
+        states: th.Tensor,
+        episode_starts: th.Tensor,
+        gumbel_noise: bool,
+        gumbel_uniform: th.Tensor | None,
+    ) -> tuple[th.Tensor, th.Tensor]:
+        """Critic scale ``k`` on obs ``(T, G, N, d)``, states ``(G, N, H)``, episode_starts ``(T, G, N)`` and its Gumbel
+        draws ``(T * G, E, T_K)`` (compiled when :meth:`set_compile` asked for it) -> values ``(T, G, N)``, new states."""
+        name = self.scales[k]
+        compiled = self._compiled_critics.get(name)
+        if compiled is None:
+            return self.critics[name](obs, states, episode_starts, gumbel_noise=gumbel_noise, gumbel_uniform=gumbel_uniform)
+        mark_dynamic(obs, 1)
+        mark_dynamic(states, 0)
+        mark_dynamic(episode_starts, 1)
+        mark_dynamic(gumbel_uniform, 0)
+        return compiled(obs, states, episode_starts, gumbel_noise=gumbel_noise, gumbel_uniform=gumbel_uniform)
 
     def _critic_values(
         self, obs: th.Tensor, states: th.Tensor, episode_starts: th.Tensor, gumbel_noise: bool | None = None
     ) -> tuple[th.Tensor, th.Tensor]:
         """obs ``(T, G, N, d)``, states ``(K, G, N, H)``, episode_starts ``(T, G, N)`` -> values ``(T, G, N, K)``,
-        new states ``(K, G, N, H)``."""
+        new states ``(K, G, N, H)``.
+
+        Each critic's Gumbel draws are made here, before it runs, from the global generator as the critic would draw
+        them itself (the same numbers; outside compiled code)."""
         noise = self.critic_gumbel_noise if gumbel_noise is None else gumbel_noise
+        n_steps, n_games = obs.shape[:2]
         values, new_states = [], []
-        for k, critic in enumerate(self.critics.values()):
-            value, state = critic(obs, states[k], episode_starts, gumbel_noise=noise)
+        for k in range(self.n_scales):
+            uniform = self.draw_gumbel_uniform(k, n_steps, n_games) if noise else None  # (T, G, E, T_K)
+            flat_uniform = None if uniform is None else uniform.flatten(0, 1)  # (T * G, E, T_K), rows (step, game)
+            value, state = self._run_critic(k, obs, states[k], episode_starts, noise, flat_uniform)
             values.append(value)
             new_states.append(state)
         return th.stack(values, dim=-1), th.stack(new_states)
@@ -411,15 +490,13 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         :return: normalised values ``(L, B, N)``
         """
         n_steps, n_blocks, n_agents = obs.shape[:3]
-        critic = list(self.critics.values())[k]
+        if gumbel_uniform is None and self.critic_gumbel_noise:
+            # drawn here rather than in the critic (the same numbers), outside any compiled code
+            uniform = self.draw_gumbel_uniform(k, n_steps, n_blocks)  # (L, B, E, T_K) or None
+            gumbel_uniform = None if uniform is None else uniform.flatten(0, 1)  # (L * B, E, T_K)
         # (L, B, N, *obs_shape) -> (L, B, N, d)
-        values, _ = critic(
-            obs.reshape(n_steps, n_blocks, n_agents, -1),
-            critic_states,
-            episode_starts,
-            gumbel_noise=self.critic_gumbel_noise,
-            gumbel_uniform=gumbel_uniform,
-        )
+        obs = obs.reshape(n_steps, n_blocks, n_agents, -1)
+        values, _ = self._run_critic(k, obs, critic_states, episode_starts, self.critic_gumbel_noise, gumbel_uniform)
         return values
 
     def draw_gumbel_uniform(self, k: int, n_steps: int, n_blocks: int) -> th.Tensor | None:
@@ -634,6 +711,7 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
                     hidden_size=self.hidden_size,
                     activation_fn=self.activation_fn,
                     gumbel_tau=self.gumbel_tau,
+                    recurrent=self.recurrent,
                 )
                 for scale in self.critic_scales
             }
@@ -683,6 +761,7 @@ class MAPPOPolicy(MultiAgentActorCriticPolicy):
             hidden_size=self.hidden_size,
             activation_fn=self.activation_fn,
             spectral_norm=self.spectral_norm,
+            recurrent=self.recurrent,
         )
         return nn.ModuleDict({"critic": critic})
 

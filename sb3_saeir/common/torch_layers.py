@@ -9,11 +9,13 @@ IJCAI-24.
 """
 
 import itertools
+import typing
 from typing import Literal
 
 import numpy as np
 import torch as th
 from torch import nn
+from torch.nn import functional as F
 
 from sb3_saeir.common.hypergraph import SCALES, build_incidence, edge_to_node, gumbel_softmax, node_to_edge
 
@@ -119,7 +121,9 @@ class GRULayer(nn.Module):
     One-layer GRU with episode resets and an output LayerNorm (MAPPO's ``RNNLayer``, spec §1.2 step 4).
 
     Before step t the hidden state is multiplied by ``1 - episode_starts[t]``. The GRU runs in one call over each
-    stretch of steps without any reset, which gives the same result as a step-by-step loop.
+    stretch of steps without any reset, which gives the same result as a step-by-step loop. Inside ``torch.compile``
+    (the algorithms' ``compile`` switch) it runs as that step loop, written out (:meth:`step_loop`) so that the
+    compiler fuses each step's gate arithmetic; the same maths up to float rounding.
     GRU weights: orthogonal; biases: 0.
 
     :param in_dim: Input size.
@@ -144,6 +148,8 @@ class GRULayer(nn.Module):
         :return: LayerNorm'ed outputs ``(T, B, H)`` and the raw last hidden state ``(B, H)``.
         """
         keep = 1.0 - episode_starts.to(x.dtype)  # (T, B)
+        if th.compiler.is_compiling():
+            return self.step_loop(x, hidden, keep)
         if x.shape[0] == 1:
             # one step (the rollout): no split to find, so no device-to-host sync of the reset steps
             boundaries = [0, 1]
@@ -159,6 +165,34 @@ class GRULayer(nn.Module):
             outputs.append(out)
         # one stretch (no reset after t = 0, the usual case): no concatenation copy
         return self.norm(outputs[0] if len(outputs) == 1 else th.cat(outputs)), hidden
+
+    def step_loop(self, x: th.Tensor, hidden: th.Tensor, keep: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        r"""
+        The GRU as a loop over steps with ``nn.GRU``'s parameters and formulas (PyTorch's gate order r, z, n), the
+        state reset by multiplying it with ``keep[t]`` at every step: no data-dependent split, so ``torch.compile``
+        traces it into one graph.
+
+        :param x: Input sequence ``(T, B, in_dim)``.
+        :param hidden: Hidden state before step 0, ``(B, H)``.
+        :param keep: ``1 - episode_starts``, ``(T, B)``.
+        :return: LayerNorm'ed outputs ``(T, B, H)`` and the raw last hidden state ``(B, H)``.
+        """
+        gru = self.gru
+        weight_ih, bias_ih = typing.cast(th.Tensor, gru.weight_ih_l0), typing.cast(th.Tensor, gru.bias_ih_l0)
+        weight_hh, bias_hh = typing.cast(th.Tensor, gru.weight_hh_l0), typing.cast(th.Tensor, gru.bias_hh_l0)
+        input_gates = F.linear(x, weight_ih, bias_ih)  # (T, B, 3H), every step at once
+        outputs = []
+        for step in range(x.shape[0]):
+            hidden = hidden * keep[step].unsqueeze(-1)  # (B, H)
+            hidden_gates = F.linear(hidden, weight_hh, bias_hh)  # (B, 3H)
+            input_r, input_z, input_n = input_gates[step].chunk(3, dim=-1)  # 3 x (B, H)
+            hidden_r, hidden_z, hidden_n = hidden_gates.chunk(3, dim=-1)  # 3 x (B, H)
+            reset = th.sigmoid(input_r + hidden_r)
+            update = th.sigmoid(input_z + hidden_z)
+            candidate = th.tanh(input_n + reset * hidden_n)
+            hidden = candidate + update * (hidden - candidate)  # (1 - z) * n + z * h
+            outputs.append(hidden)
+        return self.norm(th.stack(outputs)), hidden  # (T, B, H), (B, H)
 
 
 class ActorNetwork(nn.Module):
@@ -235,6 +269,9 @@ class ScaleCritic(nn.Module):
     :param hidden_size: Width of every layer (64 in the authors' code).
     :param activation_fn: Activation class of the MLP encoder.
     :param gumbel_tau: Gumbel-softmax temperature.
+    :param recurrent: Whether the encoder has its GRU (the paper's critic: True). ``False``: the feed-forward variant,
+        :math:`h_i` is the MLP's output and the critic keeps no state (its states have width 0;
+        ``docs/guide/algorithms.md``, "Feed-forward networks").
     """
 
     def __init__(
@@ -247,6 +284,7 @@ class ScaleCritic(nn.Module):
         hidden_size: int = 64,
         activation_fn: type[nn.Module] = nn.Tanh,
         gumbel_tau: float = 0.5,
+        recurrent: bool = True,
     ) -> None:
         super().__init__()
         if scale not in SCALES:
@@ -257,9 +295,10 @@ class ScaleCritic(nn.Module):
         self.hidden_size = hidden_size
         self.gumbel_tau = gumbel_tau
         self.n_types = {"team": 1, "group": n_edge_types, "individual": n_agents}[scale]
+        self.recurrent = recurrent
 
         self.mlp = MLPEncoder(obs_dim, hidden_size, activation_fn)
-        self.gru = GRULayer(hidden_size, hidden_size)
+        self.gru = GRULayer(hidden_size, hidden_size) if recurrent else None
         self.node2edge_start = FCBlock(hidden_size, hidden_size)
         self.attention = FCBlock(2 * hidden_size, 1)
         self.init_fc = FCBlock(hidden_size, hidden_size)
@@ -281,7 +320,7 @@ class ScaleCritic(nn.Module):
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         :param obs: Critic inputs ``(T, G, N, obs_dim)`` (G games, N agents).
-        :param hidden: GRU states before step 0, ``(G, N, H)``.
+        :param hidden: GRU states before step 0, ``(G, N, H)`` (``(G, N, 0)`` without the GRU).
         :param episode_starts: ``(T, G, N)``, 1 where a new episode starts.
         :param gumbel_noise: Draw Gumbel noise for the edge types (authors: always); False = plain softmax.
         :param gumbel_uniform: The noise's uniform draws, ``(T * G, *self.gumbel_shape)`` (drawn here when ``None``).
@@ -323,14 +362,16 @@ class ScaleCritic(nn.Module):
 
     def _encode(self, obs: th.Tensor, hidden: th.Tensor, episode_starts: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         r"""
-        Per-agent MLP + GRU over the G·N agent sequences.
+        Per-agent MLP + GRU over the G·N agent sequences (the MLP alone without the GRU).
 
         :param obs: ``(T, G, N, obs_dim)``.
-        :param hidden: ``(G, N, H)``.
+        :param hidden: ``(G, N, H)`` (``(G, N, 0)`` without the GRU: returned as it is).
         :param episode_starts: ``(T, G, N)``.
         :return: GRU features h ``(T, G, N, H)`` and new states ``(G, N, H)``.
         """
         n_steps, n_games, n_agents = obs.shape[:3]
+        if self.gru is None:
+            return self.mlp(obs), hidden  # (T, G, N, H), no state
         x = self.mlp(obs).reshape(n_steps, n_games * n_agents, self.hidden_size)  # (T, G*N, H)
         out, last = self.gru(
             x,
@@ -499,6 +540,8 @@ class RecurrentValueCritic(nn.Module):
     :param hidden_size: width of the encoder and the GRU
     :param activation_fn: encoder activation
     :param spectral_norm: layers to normalise, any of ``("output", "hidden")``
+    :param recurrent: whether the encoder has its GRU (MAPPO's recurrent critic: True); ``False``: MLP → value head,
+        no state (width 0; ``docs/guide/algorithms.md``, "Feed-forward networks")
     """
 
     def __init__(
@@ -509,6 +552,7 @@ class RecurrentValueCritic(nn.Module):
         hidden_size: int = 64,
         activation_fn: type[nn.Module] = nn.Tanh,
         spectral_norm: tuple[str, ...] = (),
+        recurrent: bool = True,
     ) -> None:
         super().__init__()
         if critic_input not in ("joint", "own"):
@@ -519,9 +563,10 @@ class RecurrentValueCritic(nn.Module):
         self.n_agents = n_agents
         self.critic_input = critic_input
         self.hidden_size = hidden_size
+        self.recurrent = recurrent
         in_dim = obs_dim * n_agents if critic_input == "joint" else obs_dim
         self.mlp = MLPEncoder(in_dim, hidden_size, activation_fn)
-        self.gru = GRULayer(hidden_size, hidden_size)
+        self.gru = GRULayer(hidden_size, hidden_size) if recurrent else None
         self.value_net = nn.Linear(hidden_size, 1)
         nn.init.orthogonal_(self.value_net.weight, gain=1.0)
         nn.init.zeros_(self.value_net.bias)
@@ -542,13 +587,16 @@ class RecurrentValueCritic(nn.Module):
     ) -> tuple[th.Tensor, th.Tensor]:
         r"""
         :param obs: ``(T, G, N, d)``
-        :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input)
+        :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input); ``(G, N, 0)`` without the
+            GRU (returned as it is)
         :param episode_starts: ``(T, G, N)``
         :param gumbel_noise: unused (same signature as :class:`ScaleCritic`)
         :param gumbel_uniform: unused (same signature as :class:`ScaleCritic`)
         :return: values ``(T, G, N)`` and new states ``(G, N, H)``
         """
         n_steps, n_games, n_agents, _ = obs.shape
+        if self.gru is None:
+            return self._feed_forward_values(obs), hidden
         if self.critic_input == "joint":
             joint = obs.reshape(n_steps, n_games, -1)  # (T, G, N * d)
             latent, new_hidden = self.gru(self.mlp(joint), hidden[:, 0], episode_starts[..., 0])  # (T, G, H), (G, H)
@@ -560,3 +608,16 @@ class RecurrentValueCritic(nn.Module):
         latent, new_hidden = self.gru(self.mlp(flat), flat_hidden, flat_starts)
         values = self.value_net(latent).reshape(n_steps, n_games, n_agents)  # (T, G * N, 1) -> (T, G, N)
         return values, new_hidden.reshape(n_games, n_agents, -1)
+
+    def _feed_forward_values(self, obs: th.Tensor) -> th.Tensor:
+        r"""
+        Values without the GRU: the encoder and the value head, once per game for the joint input.
+
+        :param obs: ``(T, G, N, d)``
+        :return: values ``(T, G, N)``
+        """
+        n_steps, n_games, n_agents, _ = obs.shape
+        if self.critic_input == "joint":
+            joint = obs.reshape(n_steps, n_games, -1)  # (T, G, N * d)
+            return self.value_net(self.mlp(joint)).expand(n_steps, n_games, n_agents)  # (T, G, 1) -> (T, G, N)
+        return self.value_net(self.mlp(obs)).squeeze(-1)  # (T, G, N, 1) -> (T, G, N)

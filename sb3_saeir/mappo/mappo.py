@@ -31,8 +31,9 @@ from stable_baselines3.common.vec_env import VecEnv
 from torch.nn import functional as F
 
 from sb3_saeir.common.atomic import save_zip
-from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length
+from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, n_blocks, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means
+from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
 from sb3_saeir.common.sampling import (
     GroupRandomStreams,
@@ -448,6 +449,11 @@ class MAPPO(OnPolicyAlgorithm):
         (default): on whenever the env allows it (games in two or more workers, no wrapper that changes steps);
         ``True``: on, an error if the env does not allow it; ``False``: the synchronous loop. Same maths; the random
         draws are made group by group (same seed, same run; ``docs/guide/performance.md``)
+    :param compile: run the forward of the actor and of every critic through ``torch.compile`` (rollout, ``predict``
+        and the update, whose backward is compiled with it): ``True`` for the inductor backend, or a backend name.
+        Where no C++ compiler is found, one warning line says so and the networks run eagerly. Not saved with the
+        model (a setting of the machine, as ``device``: ``load(path, compile=True)`` compiles a loaded model). The same
+        maths up to float rounding; ``docs/guide/performance.md``, "Compiled networks", has when it pays
     :param rollout_buffer_class: rollout buffer class (a
         :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer` subclass; default that class)
     :param rollout_buffer_kwargs: extra keyword arguments of the rollout buffer
@@ -495,6 +501,7 @@ class MAPPO(OnPolicyAlgorithm):
         huber_delta: float = 10.0,
         target_kl: float | None = None,
         double_buffered: bool | str = "auto",
+        compile: bool | str = False,
         rollout_buffer_class: type[GroupedRecurrentRolloutBuffer] | None = None,
         rollout_buffer_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
@@ -506,6 +513,7 @@ class MAPPO(OnPolicyAlgorithm):
         _init_setup_model: bool = True,
     ) -> None:
         check_env_argument(type(self).__name__, env)
+        check_compile_setting(type(self).__name__, compile)
         check_ranges(
             type(self).__name__,
             learning_rate=learning_rate,
@@ -564,6 +572,7 @@ class MAPPO(OnPolicyAlgorithm):
         self.normalize_advantage = normalize_advantage
         self.target_kl = target_kl
         self.double_buffered = double_buffered
+        self.compile = compile
         self.n_minibatches = n_minibatches
         self.data_chunk_length = data_chunk_length
         self.intrinsic_reward = intrinsic_reward
@@ -644,6 +653,7 @@ class MAPPO(OnPolicyAlgorithm):
             )
         self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
         self.policy = self.policy.to(self.device)
+        self.policy.set_compile(resolve_compile_backend(type(self).__name__, self.compile, self.device))
         if self.rollout_buffer_class is None:
             self.rollout_buffer_class = GroupedRecurrentRolloutBuffer
         if not issubclass(self.rollout_buffer_class, GroupedRecurrentRolloutBuffer):
@@ -660,8 +670,8 @@ class MAPPO(OnPolicyAlgorithm):
             n_envs=self.n_envs,
             n_agents=self.n_agents,
             n_scales=self.policy.n_scales,
-            actor_hidden_size=self.policy.hidden_size if self.policy.recurrent_actor else 0,
-            critic_hidden_size=self.policy.hidden_size,
+            actor_hidden_size=self.policy.actor_state_size,
+            critic_hidden_size=self.policy.critic_state_size,
             data_chunk_length=self.data_chunk_length,
             **self.rollout_buffer_kwargs,
         )
@@ -913,8 +923,9 @@ class MAPPO(OnPolicyAlgorithm):
         network_parameters = [self.policy.actor_parameters()] + [self.policy.critic_parameters(scale) for scale in scales]
         for epoch in range(self.n_epochs):
             for samples in self.rollout_buffer.get(self.n_minibatches, self.normalize_advantage):
-                # the networks run on the blocks grouped by valid length: no padded row is computed
-                groups = split_by_valid_length(samples)
+                # the networks run on the blocks grouped by valid length (feed-forward networks: on all valid rows at
+                # once): no padded row is computed
+                groups = [valid_rows(samples)] if self.policy.feed_forward else split_by_valid_length(samples)
                 n_valid = samples.mask.sum() * self.policy.n_agents  # valid (step, block, agent) rows
                 # W_K-mixed advantages: the weights from the valid rows (n_valid_rows * N, K) -> (K,)
                 weights = scale_advantage_weights(samples.advantages[samples.mask].reshape(-1, self.policy.n_scales))
@@ -1030,8 +1041,8 @@ class MAPPO(OnPolicyAlgorithm):
         loss_sums = []
         for group in groups:
             part = group.samples
-            # the group's rows of the draws: (length, B_g, E, T_K) -> (length * B_g, E, T_K), rows (step, block)
-            part_uniform = None if uniform is None else uniform[: group.length, group.blocks].flatten(0, 1)
+            # the group's rows of the draws: (L, B, E, T_K) -> (length * B_g, E, T_K), rows (step, block)
+            part_uniform = None if uniform is None else group.take(uniform)
             values = self.policy.evaluate_critic(
                 k, part.observations, part.critic_states[k], part.episode_starts, part_uniform
             )  # (length, B_g, N)
@@ -1150,7 +1161,8 @@ class MAPPO(OnPolicyAlgorithm):
             super().save(path, exclude=exclude, include=include)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards"]
+        # compile is a setting of the machine, as device: a model saved compiled loads eager unless load(compile=True)
+        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards", "compile"]
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
         n_agents = self._check_env(env if isinstance(env, VecEnv) else self._wrap_env(env, self.verbose))  # type: ignore[arg-type]

@@ -65,6 +65,8 @@ class SAEIR_PPO(MAPPO):
     :param target_kl: stop an epoch's updates early when the approximate KL exceeds ``1.5 * target_kl``
     :param double_buffered: double-buffered sampling with the games in worker processes (``True``, ``False`` or
         ``"auto"``: on whenever the env allows it); see :class:`~sb3_saeir.MAPPO`
+    :param compile: ``torch.compile`` of the actor's and the critics' forward (``True``: inductor, or a backend name;
+        eager with one warning line where no C++ compiler is found; not saved); see :class:`~sb3_saeir.MAPPO`
     :param rollout_buffer_class: rollout buffer class (default
         :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer`)
     :param rollout_buffer_kwargs: extra keyword arguments of the rollout buffer
@@ -110,6 +112,7 @@ class SAEIR_PPO(MAPPO):
         huber_delta: float = 10.0,
         target_kl: float | None = None,
         double_buffered: bool | str = "auto",
+        compile: bool | str = False,
         rollout_buffer_class: type[GroupedRecurrentRolloutBuffer] | None = None,
         rollout_buffer_kwargs: dict[str, Any] | None = None,
         stats_window_size: int = 100,
@@ -145,6 +148,7 @@ class SAEIR_PPO(MAPPO):
             huber_delta=huber_delta,
             target_kl=target_kl,
             double_buffered=double_buffered,
+            compile=compile,
             rollout_buffer_class=rollout_buffer_class,
             rollout_buffer_kwargs=rollout_buffer_kwargs,
             stats_window_size=stats_window_size,

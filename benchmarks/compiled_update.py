@@ -15,11 +15,13 @@ time. The work of one update is counted with ``FlopCounterMode`` (matrix product
 fills the buffer from a random env with football's shapes (115-d observations, 19 actions, episodes of 50-400
 steps) where gfootball is not installed.
 
-**The run** (``--wall-iterations N``): two fresh processes train N iterations (rollout + update) from the same seed,
-eager and compiled; the compiled one's wall time includes its compilation. Printed: the wall times, each iteration's
-time, and the compilations so far after each iteration (``torch._dynamo`` counters: frames compiled, graphs), which
-stop growing once every network has its graphs (shapes that vary, such as the number of blocks per chunk length or the
-last minibatch, are dynamic and do not recompile).
+**The run** (``--wall-iterations N``): a fresh process trains two models N iterations (rollout + update) from the
+same seed, eager and compiled, one iteration of each in turn (a change of load falls on both); the compiled one's wall
+time includes its compilation (from torch's on-disk cache as the machine has it, e.g. filled by the side-by-side
+part; ``--fresh-cache`` for a cold compile). Printed: the wall times, each iteration's time, and the compilations so
+far after each iteration (``torch._dynamo`` counters: frames compiled), which stop growing once every network has its
+graphs (shapes that vary, such as the number of blocks per chunk length or the last minibatch, are dynamic and do not
+recompile).
 
 Results: ``docs/guide/performance.md``, "Compiled networks".
 """
@@ -181,43 +183,63 @@ def side_by_side(args: argparse.Namespace) -> None:
     )
 
 
-def _run(queue: Any, args: argparse.Namespace, compile_setting: bool) -> None:
+def _interleaved_runs(queue: Any, args: argparse.Namespace) -> None:
+    """Train an eager and a compiled model from the same seed, one iteration of each in turn (so that a change of the
+    machine's load falls on both), and report each one's iteration times and build time."""
     th.set_num_threads(args.threads)
+    if args.fresh_cache:
+        import os
+        import tempfile
+
+        os.environ["TORCHINDUCTOR_CACHE_DIR"] = tempfile.mkdtemp(prefix="torchinductor_")  # a cold compile
     from sb3_saeir.common.compilation import compile_counters
 
-    start = time.perf_counter()
-    model, env, callbacks = build(args, compile_setting)
-    rollout = model.n_steps * env.num_envs
-    times, counts = [], []
+    runs: dict[bool, dict[str, Any]] = {}
+    for compile_setting in (False, True):
+        start = time.perf_counter()
+        model, env, callbacks = build(args, compile_setting)
+        runs[compile_setting] = {"model": model, "env": env, "callbacks": callbacks, "times": [], "counts": []}
+        runs[compile_setting]["build"] = time.perf_counter() - start
     for _ in range(args.wall_iterations):
-        iteration_start = time.perf_counter()
-        model.learn(rollout, callback=callbacks, reset_num_timesteps=False)
-        times.append(time.perf_counter() - iteration_start)
-        counts.append(compile_counters()["frames"])
-    env.close()
-    queue.put({"wall": time.perf_counter() - start, "times": times, "counts": counts})
+        for compile_setting, run in runs.items():
+            rollout = run["model"].n_steps * run["env"].num_envs
+            start = time.perf_counter()
+            run["model"].learn(rollout, callback=run["callbacks"], reset_num_timesteps=False)
+            run["times"].append(time.perf_counter() - start)
+            if compile_setting:
+                run["counts"].append(compile_counters()["frames"])
+    results = {}
+    for compile_setting, run in runs.items():
+        run["env"].close()
+        results[compile_setting] = {"build": run["build"], "times": run["times"], "counts": run["counts"]}
+    queue.put(results)
 
 
 def training_runs(args: argparse.Namespace) -> None:
-    """``--wall-iterations`` iterations eager, then compiled, each in a fresh process."""
+    """``--wall-iterations`` iterations eager and compiled, interleaved, in a fresh process (no compiled code in
+    memory; torch's on-disk cache as this machine has it, or a fresh one with ``--fresh-cache``)."""
     context = multiprocessing.get_context("spawn")
-    results = {}
-    for compile_setting in (False, True):
-        queue = context.Queue()
-        process = context.Process(target=_run, args=(queue, args, compile_setting))
-        process.start()
-        results[compile_setting] = queue.get()
-        process.join()
+    queue = context.Queue()
+    process = context.Process(target=_interleaved_runs, args=(queue, args))
+    process.start()
+    results = queue.get()
+    process.join()
+    walls = {}
     for compile_setting, result in results.items():
+        walls[compile_setting] = result["build"] + sum(result["times"])
         label = "compiled" if compile_setting else "eager   "
         print(
-            f"{args.wall_iterations} iterations {label}: wall {result['wall']:.1f} s (build included); per iteration "
-            + " ".join(f"{t:.2f}" for t in result["times"])
+            f"{args.wall_iterations} iterations {label}: wall {walls[compile_setting]:.1f} s (build "
+            f"{result['build']:.1f} s included); per iteration " + " ".join(f"{t:.2f}" for t in result["times"])
         )
+    compiled_times, eager_times = results[True]["times"], results[False]["times"]
+    steady = statistics.median(e / c for e, c in zip(eager_times[1:], compiled_times[1:]))
+    print(f"compile time inside the run: about {compiled_times[0] - statistics.median(compiled_times[1:]):.1f} s")
     print("compilations (frames) after each compiled iteration: " + " ".join(str(c) for c in results[True]["counts"]))
-    eager_wall, compiled_wall = results[False]["wall"], results[True]["wall"]
+    ratio = walls[False] / walls[True]
     print(
-        f"{args.wall_iterations}-iteration wall time, eager / compiled (compile included): {eager_wall / compiled_wall:.2f}x"
+        f"{args.wall_iterations}-iteration wall time, eager / compiled (compile included): {ratio:.2f}x; "
+        f"iterations after the first, median of the interleaved ratios: {steady:.2f}x"
     )
 
 
@@ -226,15 +248,17 @@ def main() -> None:
     parser.add_argument("--algo", default="saeir_ppo")
     parser.add_argument("--task", default="cn-sparse-n3")
     parser.add_argument("--n-games", type=int, default=128)
-    parser.add_argument("--rounds", type=int, default=3, help="updates each way, in turn, after the first")
+    parser.add_argument("--rounds", type=int, default=3, help="updates each way, in turn, after the first (0: none)")
     parser.add_argument("--wall-iterations", type=int, default=0, help="also train this many iterations each way")
     parser.add_argument("--policy-kwargs", default=None, help='merged into the config\'s, e.g. "dict(recurrent=False)"')
+    parser.add_argument("--fresh-cache", action="store_true", help="the run compiles without torch's on-disk cache")
     parser.add_argument("--synthetic-football", action="store_true", help="football's shapes from a random env")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     th.set_num_threads(args.threads)
-    side_by_side(args)
+    if args.rounds:
+        side_by_side(args)
     if args.wall_iterations:
         training_runs(args)
 

@@ -275,7 +275,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     def set_compile(self, backend: str | None) -> None:
         """Run the forward of the actor's trunk and of every critic through ``torch.compile`` (in the rollout, in
         ``predict`` and in the update), or eagerly again (``None``). The modules are not wrapped: the state-dict keys
-        do not change (:mod:`sb3_saeir.common.compilation`; the algorithms' ``compile`` switch calls this).
+        do not change (``sb3_saeir.common.compilation``; the algorithms' ``compile`` switch calls this).
 
         :param backend: a ``torch.compile`` backend (``"inductor"``), or ``None`` for eager
         """

@@ -228,7 +228,7 @@ def plot_seed_curves(curves: dict[tuple[str, str], dict[int, Curve]], path: Path
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sb3_saeir.benchmark.reports import format_steps
+    from sb3_saeir.benchmark.reports import label_task_panel, save_figure
 
     tasks = sorted({task for task, _ in curves})
     figure, axes = plt.subplots(1, len(tasks), figsize=(5.5 * len(tasks), 3.8), squeeze=False)
@@ -245,14 +245,8 @@ def plot_seed_curves(curves: dict[tuple[str, str], dict[int, Curve]], path: Path
             steps = next(iter(seeds.values()))[0][:common]
             mean = np.mean([values[:common] for _, values in seeds.values()], axis=0)  # (common,)
             axis.plot(steps, mean, color=color, linewidth=2.2, label=f"{algo} (mean of {len(seeds)})")
-        axis.set_title(task)
-        axis.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
-        axis.set_xlabel("env steps")
-        axis.set_ylabel(title)
-        axis.legend(fontsize=8)
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
+        label_task_panel(axis, task, title)
+    save_figure(figure, path)
 
 
 def bonus_windows(run: Path, window: float) -> list[str]:

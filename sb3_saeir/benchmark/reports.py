@@ -79,6 +79,26 @@ def format_steps(value: float, _position: Any = None) -> str:
     return f"{value:g}"
 
 
+def label_task_panel(axis: Any, task: str, title: str) -> None:
+    """Title, env-step x axis, the metric's y label and the legend of one task's panel of learning curves."""
+    import matplotlib
+
+    axis.set_title(task)
+    axis.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
+    axis.set_xlabel("env steps")
+    axis.set_ylabel(title)
+    axis.legend(fontsize=8)
+
+
+def save_figure(figure: Any, path: Path) -> None:
+    """Lay out, write (120 dpi) and close a figure."""
+    import matplotlib.pyplot as plt
+
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
 def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
     """One panel per task: mean of the main metric over seeds per method, with a ±1 std band; x in env steps."""
     import matplotlib
@@ -101,14 +121,8 @@ def plot_curves(rows: list[dict[str, Any]], path: Path) -> None:
             axis.plot(steps, mean, label=algo)
             # rates cannot be negative: the band stops at 0
             axis.fill_between(steps, np.clip(mean - std, 0.0, None), mean + std, alpha=0.2)
-        axis.set_title(task)
-        axis.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
-        axis.set_xlabel("env steps")
-        axis.set_ylabel(title)
-        axis.legend(fontsize=8)
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
+        label_task_panel(axis, task, title)
+    save_figure(figure, path)
 
 
 def numeric_series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], list[float]]:

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.common.atomic import atomic_write_text
+from sb3_saeir.common.atomic import atomic_write_text, unused_name
 from sb3_saeir.common.run_state import utc_stamp
 from sb3_saeir.config import ConfigError, load_hyperparams
 
@@ -186,11 +186,7 @@ def ensure_spec_file(folder: Path, record: dict[str, Any]) -> None:
 
 def move_aside(folder: Path) -> Path:
     """Rename a run folder to ``<folder>.replaced-<UTC time>`` (nothing is deleted); returns the new path."""
-    target = folder.with_name(f"{folder.name}.replaced-{utc_stamp()}")
-    number = 1
-    while target.exists():
-        number += 1
-        target = folder.with_name(f"{folder.name}.replaced-{utc_stamp()}-{number}")
+    target = unused_name(folder, "replaced")
     os.rename(folder, target)
     return target
 

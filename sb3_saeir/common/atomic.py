@@ -186,11 +186,22 @@ def keep_damaged(path: str | os.PathLike[str]) -> Path:
     :param path: the damaged file
     """
     path = Path(path)
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    copy = path.with_name(f"{path.name}.damaged-{stamp}")
-    number = 1
-    while copy.exists():
-        number += 1
-        copy = path.with_name(f"{path.name}.damaged-{stamp}-{number}")
+    copy = unused_name(path, "damaged")
     shutil.copy2(path, copy)
     return copy
+
+
+def unused_name(path: Path, label: str) -> Path:
+    """``<path>.<label>-<UTC time>`` (``-2``, ``-3``, ... appended while taken): a name beside ``path`` for a copy
+    or a folder moved aside, so that nothing is overwritten.
+
+    :param path: the file or folder kept
+    :param label: what the copy is (``"damaged"``, ``"replaced"``)
+    """
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    target = path.with_name(f"{path.name}.{label}-{stamp}")
+    number = 1
+    while target.exists():
+        number += 1
+        target = path.with_name(f"{path.name}.{label}-{stamp}-{number}")
+    return target

@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import threading
 import time
 
 import numpy as np
@@ -47,6 +48,39 @@ def cpu_seconds() -> float:
 
     process = psutil.Process()
     return sum(sum(proc.cpu_times()[:2]) for proc in [process, *process.children(recursive=True)])
+
+
+class TreeMemory:
+    """Peak resident memory of this process and its children (the env workers) together, sampled every ``interval``
+    seconds in a thread while the ``with`` block runs (``peak_mb``, in MiB)."""
+
+    def __init__(self, interval: float = 0.5) -> None:
+        self.interval = interval
+        self.peak_mb = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+
+    def _sample(self) -> None:
+        import psutil  # installed with the football extra
+
+        process = psutil.Process()
+        while not self._stop.is_set():
+            total = 0
+            for proc in [process, *process.children(recursive=True)]:
+                try:
+                    total += proc.memory_info().rss
+                except psutil.Error:  # a child that ended between the listing and the reading
+                    continue
+            self.peak_mb = max(self.peak_mb, total / 2**20)
+            self._stop.wait(self.interval)
+
+    def __enter__(self) -> TreeMemory:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 def busy_share(cpu: float, elapsed: float) -> float:
@@ -146,19 +180,21 @@ def training(
     config = {**load_hyperparams(algo, task), "num_cpus": num_cpus}
     if double_buffered is not None:
         config["double_buffered"] = {"on": True, "off": False, "auto": "auto"}[double_buffered]
-    model, env, callbacks, _ = build_model(algo, task, config, n_games=n_games, seed=seed)
-    n_agents = env.num_envs // n_games
-    agent_steps = iterations * model.n_steps * env.num_envs
-    cpu_start, start = cpu_seconds(), time.perf_counter()
-    model.learn(agent_steps, callback=callbacks)
-    elapsed, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
-    env.close()
+    with TreeMemory() as memory:
+        model, env, callbacks, _ = build_model(algo, task, config, n_games=n_games, seed=seed)
+        n_agents = env.num_envs // n_games
+        agent_steps = iterations * model.n_steps * env.num_envs
+        cpu_start, start = cpu_seconds(), time.perf_counter()
+        model.learn(agent_steps, callback=callbacks)
+        elapsed, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
+        env.close()
     env_steps = model.num_timesteps / n_agents
     return {
         "env_steps_per_s": env_steps / elapsed,
         "env_steps_per_cpu_s": env_steps / max(cpu, 1e-9),
         "seconds": elapsed,
         "busy": busy_share(cpu, elapsed),
+        "peak_mb": memory.peak_mb,
     }
 
 
@@ -223,7 +259,8 @@ def main() -> None:
             f"iterations={args.train_iterations}: "
             f"{result['env_steps_per_s']:7.1f} env steps/s ({result['env_steps_per_cpu_s']:6.1f} per CPU-s, "
             f"{result['seconds']:.0f} s, {result['busy']:.0%} of the CPUs busy; 25M env steps at this rate: "
-            f"{PAPER_ENV_STEPS / result['env_steps_per_s'] / 3600:.1f} h)",
+            f"{PAPER_ENV_STEPS / result['env_steps_per_s'] / 3600:.1f} h; peak RSS with the workers "
+            f"{result['peak_mb']:.0f} MB)",
             flush=True,
         )
         if engine_s is not None:

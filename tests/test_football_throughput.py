@@ -29,3 +29,25 @@ def test_cost_model_lines_name_every_core_count(football_throughput):
 def test_busy_share_is_cpu_over_cpus_times_wall(football_throughput, monkeypatch):
     monkeypatch.setattr(football_throughput.os, "cpu_count", lambda: 2)
     assert football_throughput.busy_share(3.0, 2.0) == pytest.approx(0.75)
+
+
+def test_tree_memory_counts_the_children(football_throughput):
+    pytest.importorskip("psutil")
+    import subprocess
+    import sys
+    import time
+
+    # a child holding about 200 MB: the tree's peak is above this process's own resident memory by about that much
+    child = subprocess.Popen(
+        [sys.executable, "-c", "import time; b = bytearray(200 * 2**20); b[::4096] = b'x' * len(b[::4096]); time.sleep(30)"]
+    )
+    try:
+        with football_throughput.TreeMemory(interval=0.05) as memory:
+            time.sleep(3.0)
+        import psutil
+
+        own_mb = psutil.Process().memory_info().rss / 2**20
+        assert memory.peak_mb > own_mb + 150
+    finally:
+        child.kill()
+        child.wait()

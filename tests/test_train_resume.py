@@ -2,19 +2,18 @@
 same run uninterrupted (parameters, progress.csv, evaluations, monitor rows); changed settings, finished runs and
 runs without checkpoints are refused before anything is written."""
 
-import csv
 import os
 import signal
 import subprocess
 import sys
 import time
-import zipfile
 
 import numpy as np
 import pytest
 import torch as th
 
 from sb3_saeir.train import main as train_main
+from tests.run_folders import monitor_rows, parameters, read_rows
 
 # 2 games x 3 agents: 60 agent-steps per rollout; checkpoints at the first rollout start >= 120 agent-steps after the
 # last one, evaluations every 250
@@ -63,25 +62,13 @@ def resume(algo, log_folder, *extra):
     )
 
 
-def read_csv(path, skip=0):
-    with open(path, newline="") as file:
-        for _ in range(skip):
-            file.readline()
-        return list(csv.DictReader(file))
-
-
-def parameters(path):
-    with zipfile.ZipFile(path) as archive, archive.open("policy.pth") as file:
-        return th.load(file, map_location="cpu")
-
-
 def assert_same_run(folder, reference):
     """Same final parameters, progress.csv rows (but time/ columns), evaluations and monitor rows (but wall time)."""
     final, expected = parameters(folder / "cn-sparse-n3.zip"), parameters(reference / "cn-sparse-n3.zip")
     assert final.keys() == expected.keys()
     for name in expected:
         assert th.equal(final[name], expected[name]), name
-    rows, expected_rows = read_csv(folder / "progress.csv"), read_csv(reference / "progress.csv")
+    rows, expected_rows = read_rows(folder / "progress.csv"), read_rows(reference / "progress.csv")
     counters = ("time/iterations", "time/total_timesteps")
     keys = [key for key in expected_rows[0] if not key.startswith("time/") or key in counters]
     assert [[row.get(key) for key in keys] for row in rows] == [[row[key] for key in keys] for row in expected_rows]
@@ -89,8 +76,7 @@ def assert_same_run(folder, reference):
     assert sorted(evaluations.files) == sorted(expected_evaluations.files)
     for name in expected_evaluations.files:
         np.testing.assert_array_equal(evaluations[name], expected_evaluations[name])
-    games = [{k: v for k, v in row.items() if k != "t"} for row in read_csv(folder / "games.monitor.csv", skip=1)]
-    expected_games = [{k: v for k, v in row.items() if k != "t"} for row in read_csv(reference / "games.monitor.csv", skip=1)]
+    games, expected_games = monitor_rows(folder), monitor_rows(reference)
     assert games == expected_games and len(games) > 0
 
 

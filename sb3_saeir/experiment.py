@@ -154,16 +154,22 @@ class Experiment:
         check_intrinsic_reward(self.model)
         return self.model
 
-    def load(self, path: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> BaseAlgorithm:
-        """Load a saved model of this method onto the training env (built if needed), to continue training it.
+    def load(
+        self, path: str | Path, env: VecEnv | None = None, device: str = "cpu", tensorboard_log: str | None = None
+    ) -> BaseAlgorithm:
+        """Load a saved model of this method onto the training env (``env``, else the one built before, else a new
+        one from :meth:`make_env`), to continue training it.
 
         The config's ``compile`` (not saved with a model: a setting of the machine) applies to the loaded model.
 
         :param path: the model zip
+        :param env: use this multi-agent vec env as the training env
         :param device: torch device
         :param tensorboard_log: tensorboard log folder
         """
-        if self.env is None:
+        if env is not None:
+            self.env = env
+        elif self.env is None:
             self.env = self.make_env()
         self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
         settings = {"compile": self.hyperparams["compile"]} if "compile" in self.hyperparams else {}

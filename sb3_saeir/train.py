@@ -545,40 +545,36 @@ def train(args: argparse.Namespace) -> Path:
     with folder as save_path:  # a new run's folder is removed again if the set-up fails
         set_random_seed(seed)
         experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
-        build_experiment(experiment, args, resume)
+        # the model is built on the monitored env (the monitor writes its CSV at the first finished game)
+        monitor = MultiAgentVecMonitor(
+            experiment.make_env(), str(save_path / "games"), env_id=args.task, append=resume is not None, log=note
+        )
+        build_experiment(experiment, args, monitor, resume)
         try:
             checkpoints, callbacks = run_callbacks(args, experiment, resume)
         except (ValueError, TypeError) as error:
             experiment.close()
             raise ConfigError(f"cannot set up evaluation or checkpoints: {error}") from error
     callbacks.append(BudgetEstimate(n_timesteps))
-    assert experiment.model is not None and experiment.env is not None
-    monitor = MultiAgentVecMonitor(
-        experiment.env, str(save_path / "games"), env_id=args.task, append=resume is not None, log=note
-    )
     announce_run(args, experiment, resume, n_timesteps)
     try:
-        write_run_files(args, experiment, monitor, resume, seed)
+        write_run_files(args, experiment, resume, seed)
         run_training(args, experiment, checkpoints, callbacks, resume, n_timesteps)
     except OSError as error:
         if error.errno not in NO_SPACE_ERRNOS:
             raise
-        close_quietly(experiment, monitor)
+        close_quietly(experiment)
         raise RunStoppedError(no_space_message(error, save_path)) from None
     finally:
         experiment.close()
     return save_path
 
 
-def write_run_files(
-    args: argparse.Namespace, experiment: Experiment, monitor: MultiAgentVecMonitor, resume: ResumePoint | None, seed: int
-) -> None:
-    """Set the model on the monitored env and the run's logger, and write ``<task>/config.yml`` and
-    ``<task>/args.yml`` of a new run."""
+def write_run_files(args: argparse.Namespace, experiment: Experiment, resume: ResumePoint | None, seed: int) -> None:
+    """Set the run's logger on the model, and write ``<task>/config.yml`` and ``<task>/args.yml`` of a new run."""
     assert experiment.model is not None and experiment.log_folder is not None
     params_path = experiment.log_folder / args.task
     params_path.mkdir(exist_ok=resume is not None)
-    experiment.model.set_env(monitor)
     experiment.model.set_logger(run_logger(args, experiment, resume))
     if resume is None:
         save_run_config(params_path, experiment.resolved_hyperparams, argparse.Namespace(**{**vars(args), "seed": seed}))
@@ -648,27 +644,37 @@ def no_space_message(error: OSError, folder: Path) -> str:
     )
 
 
-def close_quietly(experiment: Experiment, monitor: MultiAgentVecMonitor) -> None:
+def close_quietly(experiment: Experiment) -> None:
     """Close the run's open files (logger, monitor CSV) after a failed write: data still buffered for a full disk is
     dropped here rather than reported at exit."""
+    monitor = experiment.env
+    assert isinstance(monitor, MultiAgentVecMonitor)
     for file_owner in (experiment.model.logger if experiment.model is not None else None, monitor.results_writer):
         if file_owner is not None:
             with suppress(OSError, ValueError):
                 file_owner.close()
 
 
-def build_experiment(experiment: Experiment, args: argparse.Namespace, resume: ResumePoint | None = None) -> None:
-    """Build the env and the model (or load ``--trained-agent``, or, with ``--resume``, check the run's settings and
-    load its checkpoint); a bad setting becomes a :class:`~sb3_saeir.config.ConfigError`."""
+def build_experiment(
+    experiment: Experiment, args: argparse.Namespace, env: MultiAgentVecMonitor, resume: ResumePoint | None = None
+) -> None:
+    """Build the model on ``env`` (or load ``--trained-agent`` onto it, or, with ``--resume``, check the run's settings
+    and load its checkpoint); a bad setting becomes a :class:`~sb3_saeir.config.ConfigError`.
+
+    :param experiment: the run's experiment
+    :param args: the command
+    :param env: the run's training env, monitored
+    :param resume: where ``--resume`` continues
+    """
     # -tb, else the config's tensorboard_log (passing None would switch the config's off)
     tensorboard_log = args.tensorboard_log
     if tensorboard_log is None:
         tensorboard_log = experiment.hyperparams.get("tensorboard_log")
     try:
         if args.trained_agent and resume is None:
-            experiment.load(args.trained_agent, device=args.device, tensorboard_log=tensorboard_log)
+            experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
         else:
-            experiment.build(verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
+            experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
         if resume is not None:
             check_resume_settings(resume, args, experiment)
             experiment.resume(resume.checkpoint, device=args.device, tensorboard_log=tensorboard_log)

@@ -161,6 +161,32 @@ def test_entropy_plot(finished, capsys):
         benchmark.plot_system_entropy(out / "runs" / "mappo" / "cn-sparse-n3_s1", out / "x.png")
 
 
+@pytest.fixture
+def custom_tasks(monkeypatch):
+    """Two tasks registered for one test: one whose main metric is the return, one with a metric of its own."""
+    from sb3_saeir.common import registry
+
+    monkeypatch.setattr(registry, "_TASKS", dict(registry._TASKS))
+    registry.register_task("my-return-task", "my_package:Game", main_metric="r")
+    registry.register_task("my-score-task", "my_package:Game", main_metric="score")
+
+
+def test_table_columns_follow_the_tasks_main_metric(custom_tasks):
+    assert benchmark.table_columns("cn-sparse-n3") == [
+        ("coverage_rate_mean", "Coverage %", 100.0),
+        ("ep_rew_mean", "Ep. reward", 1.0),
+    ]
+    assert benchmark.main_metric("grf-counterattack-easy") == ("success_mean", "Success %", 100.0)
+    assert benchmark.table_columns("my-return-task") == [("ep_rew_mean", "Ep. reward", 1.0)]
+    assert benchmark.table_columns("my-score-task") == [("score_mean", "score", 1.0), ("ep_rew_mean", "Ep. reward", 1.0)]
+    rows = [
+        {"algo": "mappo", "task": "my-score-task", "seed": 1, "timesteps": 10, "score_mean": 2.5, "ep_rew_mean": 1.0},
+        {"algo": "mappo", "task": "my-return-task", "seed": 1, "timesteps": 10, "ep_rew_mean": 3.0},
+    ]
+    header = benchmark.table_markdown(rows).splitlines()[0]
+    assert header == "| Method | my-return-task Ep. reward | my-score-task score | my-score-task Ep. reward |"
+
+
 def test_aggregate_intervals_repeat():
     """The bootstrap is seeded: reporting the same ten runs twice writes the same intervals; the IQM is the closed form
     (mean of the middle half: seeds 4-7 of the sorted 0.01..0.10 coverages, 5.5%)."""

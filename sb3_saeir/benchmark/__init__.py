@@ -88,22 +88,23 @@ from sb3_saeir.benchmark.runs import (
     write_rows,
 )
 from sb3_saeir.benchmark.statistics import (
-    TABLE_COLUMNS,
+    METRIC_COLUMNS,
     final_rows,
     final_scores,
     main_metric,
     mann_whitney,
     pairwise_markdown,
     rliable_markdown,
+    table_columns,
 )
 
 __all__ = [
     "CHECKPOINT_FILE",
     "INTERRUPTED",
+    "METRIC_COLUMNS",
     "MODEL_FILE",
     "SPEC_FILE",
     "SPEC_SETTINGS",
-    "TABLE_COLUMNS",
     "BenchmarkEvalCallback",
     "RunLog",
     "RunSpec",
@@ -135,6 +136,7 @@ __all__ = [
     "spec_record",
     "stored_spec_differences",
     "system_entropy_summary",
+    "table_columns",
     "table_markdown",
     "unfinished_runs",
     "write_rows",

@@ -140,7 +140,7 @@ def check_runs_build(specs: list[RunSpec], out: Path) -> None:
         experiment = Experiment(
             spec.algo,
             spec.task,
-            {**load_hyperparams(spec.algo, spec.task), **spec.params},
+            spec.resolved_config(),
             seed=spec.seed,
             n_games=spec.n_games,
         )
@@ -162,7 +162,9 @@ def plan_runs(args: argparse.Namespace, params: dict[str, Any]) -> list[RunSpec]
             config = {**load_hyperparams(algo, task), **params}
             n_games = args.n_games if args.n_games is not None else int(config.get("n_envs", 8))
             for seed in parse_seeds(args.seeds):
-                specs.append(RunSpec(algo, task, seed, args.n_timesteps, n_games, args.eval_freq, args.eval_episodes, params))
+                specs.append(
+                    RunSpec(algo, task, seed, args.n_timesteps, n_games, args.eval_freq, args.eval_episodes, params, config)
+                )
     return specs
 
 

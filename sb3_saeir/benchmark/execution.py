@@ -35,7 +35,6 @@ from sb3_saeir.common.run_state import (
     is_exact,
     progress_logger,
 )
-from sb3_saeir.config import load_hyperparams
 from sb3_saeir.evaluation import MultiAgentEvalCallback
 
 
@@ -173,7 +172,7 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
     if (path / "done.json").is_file():
         return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(evaluations_path)}
     log = RunLog(path, spec.name)
-    config = {**load_hyperparams(spec.algo, spec.task), **spec.params}  # as given (spec.json holds its JSON form)
+    config = spec.resolved_config()  # as given (spec.json holds its JSON form)
     experiment = Experiment(spec.algo, spec.task, config, seed=spec.seed, n_games=spec.n_games)
     model = experiment.build()
     assert experiment.env is not None

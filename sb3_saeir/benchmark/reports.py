@@ -19,7 +19,7 @@ from sb3_saeir.benchmark.runs import (
     stored_spec_differences,
     write_rows,
 )
-from sb3_saeir.benchmark.statistics import TABLE_COLUMNS, final_rows, main_metric, pairwise_markdown, rliable_markdown
+from sb3_saeir.benchmark.statistics import final_rows, main_metric, pairwise_markdown, rliable_markdown, table_columns
 from sb3_saeir.common.atomic import atomic_write_text
 
 
@@ -47,7 +47,7 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
     finals = final_rows(rows)
     algos = sorted({algo for algo, _ in finals}, key=lambda a: (a == "saeir_ppo", a))
     tasks = sorted({task for _, task in finals})
-    columns = [(task, *column) for task in tasks for column in TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"]]
+    columns = [(task, *column) for task in tasks for column in table_columns(task)]
     stats: dict[tuple[str, int], tuple[float, float, int]] = {}
     for algo in algos:
         for c, (task, key, _, scale) in enumerate(columns):

@@ -35,7 +35,11 @@ SPEC_SETTINGS = {
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One training run of the benchmark."""
+    """One training run of the benchmark.
+
+    :param config: the config entry it trains with (the packaged entry with ``params`` applied); ``None``: read it
+        when needed (:meth:`resolved_config`)
+    """
 
     algo: str
     task: str
@@ -45,10 +49,19 @@ class RunSpec:
     eval_freq: int = 50_000
     eval_episodes: int = 20
     params: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
+    config: dict[str, Any] | None = field(default=None, hash=False, compare=False)
 
     @property
     def name(self) -> str:
         return f"{self.algo}/{self.task}_s{self.seed}"
+
+    def resolved_config(self) -> dict[str, Any]:
+        """The config entry the run trains with: ``config``, read once when the run was planned
+        (:func:`~sb3_saeir.benchmark.cli.plan_runs`), else the packaged entry of its method and task with ``params``
+        applied."""
+        if self.config is not None:
+            return dict(self.config)
+        return {**load_hyperparams(self.algo, self.task), **self.params}
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -114,8 +127,7 @@ def spec_record(spec: RunSpec) -> dict[str, Any]:
     """What a run's ``spec.json`` holds: its settings, the config entry it trains with, the package version."""
     from sb3_saeir import __version__
 
-    config = {**load_hyperparams(spec.algo, spec.task), **spec.params}
-    return _jsonable({**asdict(spec), "config": config, "version": __version__})
+    return _jsonable({**asdict(spec), "config": spec.resolved_config(), "version": __version__})
 
 
 def _show(value: Any) -> str:

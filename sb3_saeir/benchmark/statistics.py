@@ -10,11 +10,16 @@ from typing import Any
 
 import numpy as np
 
-# Columns of the paper's Table 1 per task family: (metric key in runs.csv, header, scale)
-TABLE_COLUMNS = {
-    "cn": [("coverage_rate_mean", "Coverage %", 100.0), ("ep_rew_mean", "Ep. reward", 1.0)],
-    "grf": [("success_mean", "Success %", 100.0), ("ep_rew_mean", "Ep. reward", 1.0)],
+from sb3_saeir.envs import get_task_spec
+
+# The table's column of each main metric (a task's ``TaskSpec.main_metric``): (key in runs.csv, header, scale).
+METRIC_COLUMNS = {
+    "coverage_rate": ("coverage_rate_mean", "Coverage %", 100.0),
+    "success": ("success_mean", "Success %", 100.0),
+    "r": ("ep_rew_mean", "Ep. reward", 1.0),
 }
+# The column every task's table has after its main metric: the episode return.
+RETURN_COLUMN = METRIC_COLUMNS["r"]
 
 
 def final_rows(rows: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
@@ -31,8 +36,23 @@ def final_rows(rows: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[st
 
 
 def main_metric(task: str) -> tuple[str, str, float]:
-    """``(key, title, scale)`` of the task's main metric: the first column of :data:`TABLE_COLUMNS` for its family."""
-    return TABLE_COLUMNS["grf" if task.startswith("grf") else "cn"][0]
+    """``(key, title, scale)`` of the task's main metric, read from its registration (``TaskSpec.main_metric``,
+    ``docs/guide/custom_env.md``); a metric without an entry in :data:`METRIC_COLUMNS` is shown as its mean, unscaled.
+
+    :param task: a registered task id
+    """
+    metric = get_task_spec(task).main_metric
+    return METRIC_COLUMNS.get(metric, (f"{metric}_mean", metric, 1.0))
+
+
+def table_columns(task: str) -> list[tuple[str, str, float]]:
+    """The task's columns of the paper's Table 1 layout: its main metric, then the episode return (once, when the
+    main metric is the return).
+
+    :param task: a registered task id
+    """
+    main = main_metric(task)
+    return [main] if main == RETURN_COLUMN else [main, RETURN_COLUMN]
 
 
 def final_scores(finals: dict[tuple[str, str], list[dict[str, Any]]]) -> dict[str, tuple[str, dict[str, list[float]]]]:

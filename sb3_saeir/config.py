@@ -32,6 +32,7 @@ from torch import nn
 
 from sb3_saeir.common.utils import check_seed, unwritable_folder
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
+from sb3_saeir.envs import list_tasks
 from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
 
@@ -483,3 +484,85 @@ def build_model(
     policy_kwargs = parse_policy_kwargs(params.get("policy_kwargs"))
     model = ALGOS[algo](policy, env, policy_kwargs=policy_kwargs, seed=seed, **algo_kwargs)
     return model, env, build_callbacks(params.get("callback")), resolved
+
+
+# ---------------------------------------------------------------------------------------------------- train's options
+def resume_target(text: str) -> int | Path:
+    """argparse type of ``--resume``'s value: a run number (``3``, as rl-zoo's ``--exp-id``; a number that is not
+    whole is refused), or else the path of a run folder (a run moved to another log folder:
+    ``--resume /data/logs/mappo/cn-sparse-n3_3``)."""
+    try:
+        float(text)
+    except ValueError:
+        return Path(text)
+    return count(text)
+
+
+def check_arguments(args: argparse.Namespace) -> None:
+    """The command-line options that no config check sees: sizes, paths, device (a
+    :class:`~sb3_saeir.config.ConfigError` naming the first bad one), checked before anything is built or written."""
+    check_range("--eval-freq", args.eval_freq, 0, " (0: never)")
+    check_range("--eval-episodes", args.eval_episodes, 1)
+    check_range("--save-freq", args.save_freq, -1, " (-1 or 0: never)")
+    check_range("--num-threads", args.num_threads, 0, " (0: the free cores)")
+    check_seed_option(args.seed, draw=DRAW_SEED)
+    check_folder("-f/--log-folder", args.log_folder)
+    check_folder("-tb/--tensorboard-log", args.tensorboard_log)
+    check_device(args.device)
+    if args.resume is not None and args.optimize:
+        raise ConfigError("--resume continues one training run; it does not apply to --optimize (drop one of them).")
+    if args.optimize:
+        check_range("--n-trials", args.n_trials, 1)
+        check_range("--n-evaluations", args.n_evaluations, 1)
+        if args.n_jobs != -1:
+            check_range("--n-jobs", args.n_jobs, 1, " (or -1: one per CPU)")
+        if args.storage is not None:
+            check_storage(args.storage)
+
+
+def check_storage(storage: str) -> None:
+    """Refuse an Optuna storage URL whose database kind SQLAlchemy does not know (without connecting to it)."""
+    import sqlalchemy.exc
+    from sqlalchemy.engine import make_url
+
+    try:
+        make_url(storage).get_dialect()
+    except (sqlalchemy.exc.ArgumentError, ValueError) as error:
+        raise ConfigError(
+            f"--storage {storage!r} is not a database URL SQLAlchemy knows ({error}); e.g. sqlite:///study.db or "
+            "postgresql://user:password@host/db."
+        ) from None
+
+
+def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
+    """The config entry (packaged or ``-conf``) with ``-params`` and ``--n-games`` / ``--n-timesteps`` applied."""
+    if args.algo not in ALGOS:
+        raise ConfigError(f"unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
+    if args.task not in list_tasks():
+        raise ConfigError(f"unknown task {args.task!r}; valid choices: {', '.join(list_tasks())}.")
+    conf_file = args.conf_file or config_path(args.algo)
+    if not Path(conf_file).is_file():
+        raise ConfigError(f"config file {conf_file} does not exist.")
+    try:
+        hyperparams = load_hyperparams(args.algo, args.task, conf_file)
+    except KeyError as error:
+        raise ConfigError(str(error.args[0])) from error
+    overrides = parse_params(args.params)
+    if args.n_games is not None:
+        overrides["n_envs"] = args.n_games
+    if args.n_timesteps is not None:
+        overrides["n_timesteps"] = args.n_timesteps
+    if args.num_cpus is not None:
+        overrides["num_cpus"] = args.num_cpus
+    if args.double_buffered is not None:
+        overrides["double_buffered"] = DOUBLE_BUFFERED_FLAGS[args.double_buffered]
+    if getattr(args, "compile", None) is not None:
+        overrides["compile"] = args.compile == "on"
+    check_hyperparams(args.algo, hyperparams, overrides)
+    resolved = {**hyperparams, **overrides}
+    check_folder("tensorboard_log", resolved.get("tensorboard_log"))
+    return resolved
+
+
+# Values of --double-buffered -> the algorithms' double_buffered.
+DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}

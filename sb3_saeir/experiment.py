@@ -32,7 +32,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_saeir.common.atomic import save_model
 from sb3_saeir.common.run_state import load_resume_state
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, build_callbacks, build_model, load_hyperparams, parse_policy_kwargs
+from sb3_saeir.config import ALGOS, ConfigError, build_callbacks, build_model, load_hyperparams, parse_policy_kwargs
 from sb3_saeir.envs import get_task_spec
 from sb3_saeir.evaluation import MultiAgentEvalCallback
 
@@ -372,6 +372,36 @@ def claimed_run_folder(log_folder: str | Path, algo: str, task: str) -> Iterator
             with suppress(OSError):  # not empty: something was written, keep it
                 empty.rmdir()
         raise
+
+
+def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | Path) -> Path:
+    """The run folder ``--resume`` names: the latest run of ``--algo`` on ``--task`` in ``--log-folder``, run ``N``,
+    or a run folder's path (a moved run).
+
+    :param log_folder: the log folder (``-f``)
+    :param algo: the method
+    :param task: the task
+    :param resume: ``--resume``'s value: a run number (0: the latest) or a run folder's path
+    :raises ~sb3_saeir.config.ConfigError: naming what is missing and the fix
+    """
+    if isinstance(resume, Path):
+        if not resume.is_dir():
+            raise ConfigError(
+                f"--resume {resume}: no such folder; give a run's number, or the path of a run folder such as "
+                f"logs/{algo}/{task}_1 (the folder holding rl_model_<steps>_steps.zip and {task}/)."
+            )
+        return resume
+    runs = run_numbers(log_folder, algo, task)
+    where = Path(log_folder) / algo
+    if not runs:
+        raise ConfigError(
+            f"--resume: no run of {algo} on {task} in {where}; start one without --resume (or, for a run "
+            "folder moved elsewhere, give its path: --resume FOLDER)."
+        )
+    number = resume or max(runs)
+    if number not in runs:
+        raise ConfigError(f"--resume {number}: no run {number} of {algo} on {task} in {where}; runs: {sorted(runs)}.")
+    return runs[number]
 
 
 def checkpoint_steps(folder: str | Path) -> dict[int, Path]:

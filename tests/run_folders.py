@@ -1,12 +1,12 @@
 """Tiny training runs of ``python -m sb3_saeir.train`` for the tests of damaged, moved and concurrent run folders."""
 
 import csv
+import json
 import shutil
 import zipfile
 from pathlib import Path
 
 import torch as th
-import yaml
 
 from sb3_saeir.train import main as train_main
 
@@ -18,6 +18,13 @@ SETTINGS = [
     "-params", "n_steps:10", "n_epochs:2",
 ]  # fmt: skip
 TASK = "cn-sparse-n3"
+# A run folder interrupted by commit 2ff651c, before one Run owned a run (its settings in args.yml and config.yml, no
+# spec.json), and the rest of the command that made it (tests/data/make_interrupted_train.py)
+LEGACY_RUN = Path(__file__).parent / "data" / "interrupted_train" / "logs" / "mappo" / f"{TASK}_1"
+LEGACY_SETTINGS = [
+    "--task", TASK, "--seed", "1", "-n", "900", "--n-games", "2", "--eval-freq", "250", "--eval-episodes", "2",
+    "--save-freq", "240", "--num-threads", "1", "-params", "n_steps:10", "n_epochs:2",
+]  # fmt: skip
 LAST_CHECKPOINT = 840
 
 
@@ -33,17 +40,19 @@ def finished_run(log_folder):
 
 
 def unfinished_copy(run, log_folder, moved=False):
-    """A copy of a finished run in ``log_folder`` without its final model: ``--resume`` continues it from its last
-    checkpoint (840 agent-steps) and ends as the finished run. Its ``args.yml`` names the new log folder, as if it had
-    been started there, unless ``moved``.
+    """A copy of a finished run in ``log_folder`` without its final model and ``done.json``: ``--resume`` continues it
+    from its last checkpoint (840 agent-steps) and ends as the finished run. Its settings record (``spec.json``) names
+    the new log folder, as if it had been started there, unless ``moved``.
     """
     folder = Path(log_folder) / "mappo" / f"{TASK}_1"
     shutil.copytree(run, folder)
     (folder / f"{TASK}.zip").unlink()
+    (folder / "done.json").unlink()
     if not moved:
-        args_path = folder / TASK / "args.yml"
-        args = yaml.safe_load(args_path.read_text())
-        args_path.write_text(yaml.safe_dump({**args, "log_folder": str(log_folder)}))
+        spec_path = folder / "spec.json"
+        spec = json.loads(spec_path.read_text())
+        spec["options"]["-f"] = str(log_folder)
+        spec_path.write_text(json.dumps(spec))
     return folder
 
 

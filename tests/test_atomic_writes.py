@@ -188,14 +188,12 @@ def write_evaluations(tmp_path, env):
 
 
 def write_args(tmp_path, env):
-    from argparse import Namespace
+    from sb3_saeir.run import save_run_config
 
-    from sb3_saeir.train import save_run_config
-
-    save_run_config(tmp_path, {"n_steps": 10}, Namespace(seed=1, params=None))
+    save_run_config(tmp_path, {"n_steps": 10}, {"seed": 1, "params": None})
     path = tmp_path / "args.yml"
     long_params = [f"key_{index}:{index}" for index in range(400)]
-    return path, lambda: save_run_config(tmp_path, {"n_steps": 10}, Namespace(seed=1, params=long_params)), 2_000
+    return path, lambda: save_run_config(tmp_path, {"n_steps": 10}, {"seed": 1, "params": long_params}), 2_000
 
 
 def write_monitor(tmp_path, env):
@@ -300,11 +298,9 @@ def test_model_save_keeps_sb3s_path_rules(tmp_path, env):
 
 
 def test_args_file_is_still_plain_yaml(tmp_path):
-    from argparse import Namespace
+    from sb3_saeir.run import save_run_config
 
-    from sb3_saeir.train import save_run_config
-
-    save_run_config(tmp_path, {"n_steps": 10}, Namespace(seed=3, algo="mappo"))
+    save_run_config(tmp_path, {"n_steps": 10}, {"seed": 3, "algo": "mappo"})
     assert yaml.safe_load((tmp_path / "args.yml").read_text()) == {"algo": "mappo", "seed": 3}
     assert yaml.safe_load((tmp_path / "config.yml").read_text()) == {"n_steps": 10}
     shutil.rmtree(tmp_path)

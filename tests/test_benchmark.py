@@ -120,14 +120,14 @@ def test_interrupted_run_resumes_from_checkpoint(tmp_path, monkeypatch):
     monkeypatch.setattr(MultiAgentEvalCallback, "evaluate", crash_on_third)
     with pytest.raises(RuntimeError):
         execute_run(spec, str(folder))
-    assert (folder / "checkpoint.zip").is_file() and not (folder / "done.json").exists()
+    assert len(list(folder.glob("rl_model_*_steps.zip"))) == 2 and not (folder / "done.json").exists()  # the newest two
     monkeypatch.setattr(MultiAgentEvalCallback, "evaluate", original)
     result = execute_run(spec, str(folder))
     assert result["status"] == "done"
     steps = [int(r["timesteps"]) for r in read_csv(folder / "evaluations.csv")]
     assert calls[:2] == [0, 102] and steps[:2] == [0, 102]  # evaluations before the crash are kept
     assert steps == sorted(set(steps)) and steps[-1] == 300  # resumed at 102: nothing repeated, nothing lost
-    assert (folder / "done.json").is_file() and not (folder / "checkpoint.zip").exists()
+    assert (folder / "done.json").is_file() and not list(folder.glob("rl_model_*_steps.zip"))
 
 
 def test_failing_run_does_not_stop_the_others(tmp_path, monkeypatch):

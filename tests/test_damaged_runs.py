@@ -1,10 +1,12 @@
 """``python -m sb3_saeir.train --resume`` on a damaged run folder: a checkpoint that does not load is skipped (one line
-names it) and the run goes on from the newest one that loads, ending as the run uninterrupted; a damaged ``args.yml``
-or ``config.yml`` is refused in one line naming the file and the fix, nothing written; rows of ``games.monitor.csv``
+names it and keeps it aside) and the run goes on from the newest one that loads, ending as the run uninterrupted; a
+damaged ``spec.json`` (or, for a run of an older version, ``args.yml`` or ``config.yml``) is refused in one line naming
+the file and the fix, nothing written; rows of ``games.monitor.csv``
 that are cut, deleted or damaged are written again from the checkpoint, and rows of ``progress.csv`` that cannot be
 restored are counted in a note naming the file (the damaged file is kept), never dropped without a word."""
 
 import re
+import shutil
 import zipfile
 
 import pytest
@@ -12,6 +14,8 @@ import pytest
 from sb3_saeir.train import main as train_main
 from tests.run_folders import (
     LAST_CHECKPOINT,
+    LEGACY_RUN,
+    LEGACY_SETTINGS,
     TASK,
     argv,
     assert_same_parameters,
@@ -105,7 +109,26 @@ def test_no_checkpoint_that_loads_is_refused_in_one_line(run, capsys):
     assert snapshot(run) == before
 
 
-# ---------------------------------------------------------------------------------------------------- args.yml, config.yml
+# ---------------------------------------------------------------------------------------------------- spec.json, args.yml
+DAMAGED_SPEC_FILES = [
+    (b"{not json", "not valid JSON"),
+    (b"[1, 2]", "not a JSON object"),
+    (b"\xff\xfe\x00\x01 binary", "not valid JSON"),
+]
+
+
+@pytest.mark.parametrize(("content", "problem"), DAMAGED_SPEC_FILES)
+def test_a_damaged_spec_file_is_named_and_nothing_written(run, capsys, content, problem):
+    path = run / "spec.json"
+    path.write_bytes(content)
+    before = snapshot(run)
+    status, _, err = resume(run, capsys)
+    assert status == 2, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert f"{path} is damaged ({problem}" in err and "restore it from a copy" in err, err
+    assert snapshot(run) == before
+
+
 DAMAGED_RUN_FILES = [
     ("args.yml", b"seed: [1, 2\n", "not valid YAML"),
     ("args.yml", b"- mappo\n- 3\n", "not a mapping of args, but list"),
@@ -118,11 +141,15 @@ DAMAGED_RUN_FILES = [
 
 
 @pytest.mark.parametrize(("name", "content", "problem"), DAMAGED_RUN_FILES)
-def test_a_damaged_run_file_is_named_and_nothing_written(run, capsys, name, content, problem):
+def test_a_damaged_run_file_of_an_older_run_is_named_and_nothing_written(tmp_path, capsys, name, content, problem):
+    """A run of an older version keeps its settings in ``<task>/args.yml`` and ``<task>/config.yml``."""
+    run = tmp_path / "run"
+    shutil.copytree(LEGACY_RUN, run)
     path = run / TASK / name
     path.write_bytes(content)
     before = snapshot(run)
-    status, _, err = resume(run, capsys)
+    status = train_main(["--algo", "mappo", *LEGACY_SETTINGS, "-f", str(tmp_path / "logs"), "--resume", str(run)])
+    err = capsys.readouterr().err
     assert status == 2, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert f"{path} is damaged ({problem}" in err and "restore it from a copy" in err, err

@@ -2,6 +2,7 @@
 (``--resume FOLDER``; ``--resume`` and ``--resume N`` work as before, and their refusal of a moved run names the way),
 and runs started together in one log folder get different run numbers (the folder is created exclusively)."""
 
+import json
 import os
 import subprocess
 import sys
@@ -67,14 +68,19 @@ def test_resume_by_run_number_works_as_before(reference, tmp_path, capsys):
     ("target", "message"),
     [
         ("missing", "no such folder; give a run's number, or the path of a run folder"),
-        ("other task", f"has no {TASK}/args.yml: it is not a run of this command"),
+        ("other task", "holds a run of mappo on cn-sparse-n4: it is not a run of this command"),
+        ("no run", f"has no spec.json nor {TASK}/args.yml: it is not a run of this command"),
     ],
 )
 def test_resume_by_a_wrong_path_is_refused_in_one_line(reference, tmp_path, capsys, target, message):
     folder = tmp_path / "missing"
     if target == "other task":
         folder = unfinished_copy(reference, tmp_path / "logs")
-        (folder / TASK).rename(folder / "cn-sparse-n4")
+        spec = json.loads((folder / "spec.json").read_text())
+        (folder / "spec.json").write_text(json.dumps({**spec, "task": "cn-sparse-n4"}))
+    elif target == "no run":
+        folder.mkdir()
+        (folder / "notes.txt").write_text("not a run")
     before = snapshot(tmp_path)
     assert train_main(argv(tmp_path / "logs", "--resume", str(folder))) == 2
     err = capsys.readouterr().err

@@ -29,7 +29,9 @@ def trained(tmp_path_factory):
 
 def test_rl_zoo_folder_layout(trained):
     _, run = trained
-    for name in ("cn-sparse-n3.zip", "best_model.zip", "evaluations.npz", "games.monitor.csv"):
+    for name in ("cn-sparse-n3.zip", "best_model.zip", "evaluations.npz", "games.monitor.csv", "spec.json"):
+        assert (run / name).is_file(), name
+    for name in ("evaluations.csv", "progress.csv", "segments.json", "done.json"):  # the benchmark's run files too
         assert (run / name).is_file(), name
     assert sorted(p.name for p in run.glob("rl_model_*_steps.zip")) == ["rl_model_120_steps.zip", "rl_model_240_steps.zip"]
     config = yaml.safe_load((run / "cn-sparse-n3" / "config.yml").read_text())
@@ -38,8 +40,8 @@ def test_rl_zoo_folder_layout(trained):
     args = yaml.safe_load((run / "cn-sparse-n3" / "args.yml").read_text())
     assert args["algo"] == "saeir_ppo" and args["seed"] == 0
     evaluations = np.load(run / "evaluations.npz")
-    assert evaluations["results"].shape == (2, 2)  # 2 evaluations x 2 game episodes
-    assert evaluations["coverage_rate"].shape == (2, 2) and list(evaluations["timesteps"]) == [120, 240]
+    assert evaluations["results"].shape == (4, 2)  # 4 evaluations x 2 game episodes: at the start, 120, 240, the end
+    assert evaluations["coverage_rate"].shape == (4, 2) and list(evaluations["timesteps"]) == [0, 120, 240, 300]
     monitor = load_results(str(run))
     assert (monitor["l"] == 25).all() and "coverage_rate" in monitor  # one row per game episode
 

@@ -1,6 +1,8 @@
 """``python -m sb3_saeir.train`` run folders outlive changes of the code: a run interrupted by an earlier version
-(commit 2ff651c, ``tests/data/make_interrupted_train.py``) resumes with ``--resume FOLDER`` and ends as that
-version's uninterrupted run ended (parameters, ``progress.csv`` but its ``time/`` columns, ``evaluations.npz``)."""
+(commit 2ff651c, ``tests/data/make_interrupted_train.py``, before one ``Run`` owned a run) resumes with
+``--resume FOLDER`` and trains as that version's uninterrupted run did (parameters, the training rows of
+``progress.csv``); its evaluations up to the checkpoint are kept, and the later ones follow today's schedule (on the
+grid, each on the same episodes, one at the end)."""
 
 import shutil
 from pathlib import Path
@@ -8,21 +10,16 @@ from pathlib import Path
 import numpy as np
 
 from sb3_saeir.train import main as train_main
-from tests.run_folders import parameters, read_rows
+from tests.run_folders import LEGACY_RUN, LEGACY_SETTINGS, parameters, read_rows
 
 DATA = Path(__file__).parent / "data" / "interrupted_train"
-# the command that made tests/data/interrupted_train (tests/data/make_interrupted_train.py)
-SETTINGS = [
-    "--task", "cn-sparse-n3", "--seed", "1", "-n", "900", "--n-games", "2", "--eval-freq", "250", "--eval-episodes", "2",
-    "--save-freq", "240", "--num-threads", "1", "-params", "n_steps:10", "n_epochs:2",
-]  # fmt: skip
 
 
 def test_a_run_interrupted_by_an_earlier_version_resumes(tmp_path, capsys):
     folder = tmp_path / "cn-sparse-n3_1"
-    shutil.copytree(DATA / "logs" / "mappo" / "cn-sparse-n3_1", folder)
+    shutil.copytree(LEGACY_RUN, folder)
     expected = DATA / "expected" / "mappo"
-    assert train_main(["--algo", "mappo", *SETTINGS, "-f", str(tmp_path / "logs"), "--resume", str(folder)]) == 0
+    assert train_main(["--algo", "mappo", *LEGACY_SETTINGS, "-f", str(tmp_path / "logs"), "--resume", str(folder)]) == 0
     assert "Resuming" in capsys.readouterr().out
     final = {name: tensor.numpy() for name, tensor in parameters(folder / "cn-sparse-n3.zip").items()}
     reference = np.load(expected / "parameters.npz")
@@ -30,10 +27,13 @@ def test_a_run_interrupted_by_an_earlier_version_resumes(tmp_path, capsys):
     for name in reference.files:
         np.testing.assert_array_equal(final[name.split(".", 1)[1]], reference[name], err_msg=name)
     rows, expected_rows = read_rows(folder / "progress.csv"), read_rows(expected / "progress.csv")
-    counters = ("time/iterations", "time/total_timesteps")
-    keys = [key for key in expected_rows[0] if not key.startswith("time/") or key in counters]
-    assert [[row.get(key) for key in keys] for row in rows] == [[row[key] for key in keys] for row in expected_rows]
+    # the rows of every rollout (an evaluation's row, and the update's values dumped with it, come with the schedule)
+    keys = [key for key in expected_rows[0] if key.startswith("rollout/")] + ["time/iterations", "time/total_timesteps"]
+    assert [[row[key] for key in keys] for row in rows if row["time/iterations"]] == [
+        [row[key] for key in keys] for row in expected_rows if row["time/iterations"]
+    ]
     evaluations, expected_evaluations = np.load(folder / "evaluations.npz"), np.load(expected / "evaluations.npz")
-    assert sorted(evaluations.files) == sorted(expected_evaluations.files)
-    for name in expected_evaluations.files:
-        np.testing.assert_array_equal(evaluations[name], expected_evaluations[name])
+    assert list(expected_evaluations["timesteps"]) == [252, 504, 756]
+    assert list(evaluations["timesteps"]) == [252, 504, 750, 900]  # the grid (first count >= k * 250), the end
+    np.testing.assert_array_equal(evaluations["results"][0], expected_evaluations["results"][0])  # kept
+    assert [row["timesteps"] for row in read_rows(folder / "evaluations.csv")] == ["504", "750", "900"]

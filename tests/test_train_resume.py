@@ -125,7 +125,8 @@ def test_changed_settings_are_refused_and_nothing_is_written(tmp_path, capsys):
     argv[argv.index("n_epochs:2")] = "n_epochs:3"
     assert train_main(argv) == 2
     error = capsys.readouterr().err
-    assert "--eval-freq 250 -> 500" in error and "config n_epochs 2 -> 3" in error and "other settings" in error
+    assert "--eval-freq 250 -> 500" in error and '-params {"n_epochs": 2' in error and '{"n_epochs": 3' in error
+    assert "other settings" in error
     assert {path: path.stat().st_mtime_ns for path in folder.rglob("*")} == before
 
 

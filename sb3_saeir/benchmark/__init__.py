@@ -71,8 +71,7 @@ from sb3_saeir.benchmark.reports import (
     unfinished_runs,
 )
 from sb3_saeir.benchmark.runs import (
-    CHECKPOINT_FILE,
-    MODEL_FILE,
+    CHECKPOINT_NAME,
     SPEC_FILE,
     SPEC_SETTINGS,
     RunLog,
@@ -99,10 +98,9 @@ from sb3_saeir.benchmark.statistics import (
 )
 
 __all__ = [
-    "CHECKPOINT_FILE",
+    "CHECKPOINT_NAME",
     "INTERRUPTED",
     "METRIC_COLUMNS",
-    "MODEL_FILE",
     "SPEC_FILE",
     "SPEC_SETTINGS",
     "BenchmarkEvalCallback",

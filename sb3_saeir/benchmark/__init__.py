@@ -8,12 +8,14 @@ override it) and evaluates at 0 agent-steps, at the first agent-step count >= k 
 and at the end, on game episodes. Every evaluation reseeds the evaluation env with the same seed (``10_000 + seed``)
 before it starts, so every evaluation of a run plays the same ``--eval-episodes`` episodes. Output folder:
 
-- ``runs/<algo>/<task>_s<seed>/``: ``spec.json`` (the run's settings: algo, task, seed, n_timesteps, n_games,
-  eval_freq, eval_episodes, params, the config entry it trains with, the package version), ``evaluations.csv`` (one
-  row per evaluation), ``progress.csv`` (SB3 logger, continued over resumes), ``checkpoint.zip`` (latest, for
-  resuming), ``segments.json`` (wall time of each process that worked on the run), ``resume.log`` (what each resume
-  did), ``done.json`` and ``model.zip`` (when finished: total wall time over the segments, agent-steps; the final
-  model, for ``enjoy`` or ``benchmarks/bonus_readings.py``);
+- ``runs/<algo>/<task>_s<seed>/``: a :class:`~sb3_saeir.run.Run`'s folder, as a ``train`` run's (:mod:`sb3_saeir.run`
+  lists the files): ``spec.json`` (the run's settings: algo, task, seed, n_timesteps, n_games, eval_freq,
+  eval_episodes, params, the config entry it trains with, the package version), ``evaluations.csv`` (one row per
+  evaluation), ``evaluations.npz`` and ``best_model.zip``, ``progress.csv`` (SB3 logger, continued over resumes),
+  ``games.monitor.csv``, ``rl_model_<steps>_steps.zip`` (the newest two checkpoints, for resuming),
+  ``segments.json`` (wall time of each process that worked on the run), ``resume.log`` (what each resume did),
+  ``done.json`` and ``<task>.zip`` (when finished: total wall time over the segments, agent-steps; the final model,
+  for ``enjoy`` or ``benchmarks/bonus_readings.py``);
 - ``runs.csv``: every evaluation row of the command's runs (algo, task, seed, agent-steps, env steps, metrics);
 - ``table.md``: mean ± std over seeds at the final evaluation, best method in bold (the paper's Table 1 layout);
 - ``curves.png``: one panel per task, mean line and std band per method, x axis in env steps (game steps);
@@ -31,8 +33,8 @@ total budget, the shorter run's final (off-grid) evaluation would sit in the cur
 checkpoint. ``runs.csv``, ``table.md`` and ``curves.png`` hold only runs whose spec matches the command.
 
 **Resuming loses nothing.** Re-running the same command skips finished runs and resumes interrupted ones from their
-checkpoint, taken at the start of every rollout after the first. ``checkpoint.zip`` is the SB3 model zip with one
-more entry, ``resume_state.pkl``: the torch, NumPy and ``random`` generator states, the model's last observations,
+checkpoint, taken at the start of every rollout after the first. A checkpoint is the SB3 model zip with one more
+entry, ``resume_state.pkl``: the torch, NumPy and ``random`` generator states, the model's last observations,
 episode starts and GRU states, its episode-info buffers, the training env's state (the native navigation env's
 ``get_resume_state``: arrays and per-game generators), the intrinsic-reward callbacks (RND, Elign: networks,
 optimisers, running statistics) and the logger's values not yet written. It is written to a temporary file and moved
@@ -50,11 +52,12 @@ cluster instead of local processes (results gathered into the same folder; resum
 filesystem). ``--entropy-plot RUN_FOLDER`` draws the SAEIR bonus, its fire rate and the value-softmax entropy over training for
 one run (``system_entropy.png`` in the run's folder) and prints the fire rate and entropy per scale.
 
-The package's modules, one concern each: :mod:`~sb3_saeir.benchmark.runs` (run specs, folders, ``spec.json``),
-:mod:`~sb3_saeir.benchmark.execution` (one run; local processes and Ray), :mod:`~sb3_saeir.benchmark.reports` (the
+The package's modules, one concern each: :mod:`~sb3_saeir.benchmark.runs` (run folders, the comparison of
+``spec.json`` with the command), :mod:`~sb3_saeir.benchmark.execution` (one run as a :class:`~sb3_saeir.run.Run`;
+local processes and Ray), :mod:`~sb3_saeir.benchmark.reports` (the
 tables and figures), :mod:`~sb3_saeir.benchmark.statistics` (final scores, IQM, Mann-Whitney) and
-:mod:`~sb3_saeir.benchmark.cli` (the command line). The checkpoints and the continued logger are
-:mod:`sb3_saeir.common.run_state`, shared with ``python -m sb3_saeir.train --resume``.
+:mod:`~sb3_saeir.benchmark.cli` (the command line). The run itself is :mod:`sb3_saeir.run`,
+shared with ``python -m sb3_saeir.train``; its checkpoints and continued logger are :mod:`sb3_saeir.common.run_state`.
 """
 
 from sb3_saeir.benchmark.cli import INTERRUPTED, check_runs_build, main, plan_runs, prepare_folders, refusal

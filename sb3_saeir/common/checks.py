@@ -220,12 +220,13 @@ def check_n_agents(algo_name: str, env: VecEnv, expected: int | None = None) -> 
     return int(n_agents)
 
 
-def check_policy_class(algo_name: str, policy_class: Any, aliases: Iterable[str]) -> None:
+def check_policy_class(algo_name: str, policy_class: Any, aliases: Iterable[str]) -> type[MultiAgentActorCriticPolicy]:
     """Refuse a policy that is not a :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy`.
 
     :param algo_name: class name for the message
     :param policy_class: the policy class (an alias already resolved)
     :param aliases: the algorithm's policy aliases, for the message
+    :return: the class
     """
     if not (isinstance(policy_class, type) and issubclass(policy_class, MultiAgentActorCriticPolicy)):
         name = getattr(policy_class, "__name__", repr(policy_class))
@@ -233,15 +234,18 @@ def check_policy_class(algo_name: str, policy_class: Any, aliases: Iterable[str]
             f"{algo_name} needs a MultiAgentActorCriticPolicy: one of {sorted(aliases)} or a subclass of "
             f"sb3_saeir.common.policies.MultiAgentActorCriticPolicy, got {name}."
         )
+    return policy_class
 
 
-def check_rollout_buffer_class(rollout_buffer_class: Any) -> None:
+def check_rollout_buffer_class(rollout_buffer_class: Any) -> type[GroupedRecurrentRolloutBuffer]:
     """Refuse a rollout buffer that is not a :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer`.
 
     :param rollout_buffer_class: ``rollout_buffer_class`` argument (``None`` already replaced by the default)
+    :return: the class
     """
     if not (isinstance(rollout_buffer_class, type) and issubclass(rollout_buffer_class, GroupedRecurrentRolloutBuffer)):
         raise ValueError(f"rollout_buffer_class must be a GroupedRecurrentRolloutBuffer subclass, got {rollout_buffer_class}.")
+    return rollout_buffer_class
 
 
 def check_observation_space(algo_name: str, observation_space: spaces.Space) -> None:

@@ -266,14 +266,14 @@ class MAPPO(OnPolicyAlgorithm):
         self._setup_lr_schedule()
         self.set_random_seed(self.seed)
         self.policy_kwargs = {**self.policy_kwargs, "n_agents": self.n_agents, "normalize_values": self.normalize_values}
-        checks.check_policy_class(type(self).__name__, self.policy_class, self.policy_aliases)
-        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
+        policy_class = checks.check_policy_class(type(self).__name__, self.policy_class, self.policy_aliases)
+        self.policy = policy_class(self.observation_space, self.action_space, self.lr_schedule, **self.policy_kwargs)
         self.policy = self.policy.to(self.device)
         self.policy.set_compile(resolve_compile_backend(type(self).__name__, self.compile, self.device))
         if self.rollout_buffer_class is None:
             self.rollout_buffer_class = GroupedRecurrentRolloutBuffer
-        checks.check_rollout_buffer_class(self.rollout_buffer_class)
-        self.rollout_buffer = self.rollout_buffer_class(
+        buffer_class = checks.check_rollout_buffer_class(self.rollout_buffer_class)
+        self.rollout_buffer = buffer_class(
             self.n_steps,
             self.observation_space,  # type: ignore[arg-type]
             self.action_space,

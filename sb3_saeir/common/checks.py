@@ -291,9 +291,10 @@ def check_action_space(owner: str, action_space: spaces.Space) -> None:
 # ------------------------------------------------------------------------------------------------ intrinsic rewards
 def check_intrinsic_reward(
     algo_name: str, intrinsic_reward: Any, intrinsic_coef: float | None, intrinsic_kwargs: dict[str, Any] | None
-) -> None:
-    """Check the intrinsic-reward arguments at construction by building the callback once (unknown names and keys,
-    bad variants and kwargs given without a bonus fail here, not at ``learn``).
+) -> BaseCallback | None:
+    """Check the intrinsic-reward arguments at construction by building the callback (unknown names and keys, bad
+    variants and kwargs given without a bonus fail here, not at ``learn``); the callback built is returned, for the
+    algorithm to add at ``learn`` (``None`` without a bonus).
 
     :param algo_name: class name for the message
     :param intrinsic_reward: ``intrinsic_reward`` argument: a name registered with
@@ -307,12 +308,12 @@ def check_intrinsic_reward(
                 f"{algo_name}: intrinsic_kwargs={intrinsic_kwargs!r} given with intrinsic_reward=None would be ignored; "
                 f"set intrinsic_reward (one of {sorted(INTRINSIC_REWARDS)}) or remove intrinsic_kwargs."
             )
-        return
+        return None
     if not isinstance(intrinsic_reward, str) or intrinsic_reward not in INTRINSIC_REWARDS:
         raise ValueError(f"Unknown intrinsic_reward {intrinsic_reward!r}; choose one of {[*sorted(INTRINSIC_REWARDS), None]}.")
     if intrinsic_kwargs is not None and not isinstance(intrinsic_kwargs, dict):
         raise ValueError(f"{algo_name}: intrinsic_kwargs must be a dict, got {intrinsic_kwargs!r}.")
-    build_intrinsic_reward(algo_name, intrinsic_reward, intrinsic_coef, intrinsic_kwargs or {})
+    return build_intrinsic_reward(algo_name, intrinsic_reward, intrinsic_coef, intrinsic_kwargs or {})
 
 
 def build_intrinsic_reward(

@@ -195,7 +195,8 @@ class MAPPO(OnPolicyAlgorithm):
         check_bool(type(self).__name__, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
         if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
             check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
-        checks.check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
+        # built once: the callback learn() adds (docs/guide/algorithms.md)
+        self._bonus = checks.check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
         checks.check_tensorboard_log(type(self).__name__, tensorboard_log)
         checks.check_device(type(self).__name__, device)
         checks.check_double_buffered(type(self).__name__, double_buffered)
@@ -314,13 +315,11 @@ class MAPPO(OnPolicyAlgorithm):
         """Add the intrinsic reward named by ``intrinsic_reward`` (unless the user passed one of its class) and
         remember every intrinsic-reward callback: :meth:`collect_rollouts` asks them for their bonus before GAE."""
         callbacks = flatten_callbacks(callback)
-        if self.intrinsic_reward is not None:
-            bonus_class = INTRINSIC_REWARDS[self.intrinsic_reward]
-            if not any(isinstance(c, bonus_class) for c in callbacks):
-                name = type(self).__name__
-                callbacks.append(
-                    checks.build_intrinsic_reward(name, self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs)
-                )
+        if self._bonus is None and self.intrinsic_reward is not None:  # a loaded model: built at its first learn()
+            bonus = (self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs or {})
+            self._bonus = checks.build_intrinsic_reward(type(self).__name__, *bonus)
+        if self._bonus is not None and not any(isinstance(c, type(self._bonus)) for c in callbacks):
+            callbacks.append(self._bonus)
         self._intrinsic_rewards = [c for c in callbacks if isinstance(c, IntrinsicRewardCallback)]
         return super()._init_callback(callbacks, progress_bar)
 
@@ -673,9 +672,10 @@ class MAPPO(OnPolicyAlgorithm):
             if "n_minibatches" in overrides and "batch_size" not in overrides:
                 self.batch_size = None  # as in the constructor: n_minibatches decides when batch_size is None
             self.n_minibatches = self._resolve_minibatches()
+        self._bonus = None  # the constructor's, of the class defaults: the saved settings' is built at learn()
         if checks.INTRINSIC_ARGUMENTS & set(overrides):
-            name = type(self).__name__
-            checks.check_intrinsic_reward(name, self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs)
+            bonus = (self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs)
+            self._bonus = checks.check_intrinsic_reward(type(self).__name__, *bonus)
             self.intrinsic_kwargs = dict(self.intrinsic_kwargs or {})
 
     def set_random_seed(self, seed: int | None = None) -> None:
@@ -709,7 +709,7 @@ class MAPPO(OnPolicyAlgorithm):
 
     def _excluded_save_params(self) -> list[str]:
         # compile is a setting of the machine, as device: a model saved compiled loads eager unless load(compile=True)
-        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards", "compile"]
+        return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards", "_bonus", "compile"]
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
         vec_env = env if isinstance(env, VecEnv) else self._wrap_env(env, self.verbose)  # type: ignore[arg-type]

@@ -30,6 +30,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
+from sb3_saeir.common import checks
 from sb3_saeir.common.utils import check_seed, unwritable_folder
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.envs import list_tasks
@@ -179,17 +180,11 @@ def check_seed_option(seed: int, option: str = "--seed", draw: int | None = None
 
 def check_device(device: str) -> None:
     """Refuse a ``--device`` torch does not know, or ``cuda`` on a machine without CUDA (SB3 would fall back to the
-    CPU without a word)."""
-    import torch as th
-
-    if device == "auto":
-        return
+    CPU without a word): :func:`sb3_saeir.common.checks.check_device` as a :class:`ConfigError`."""
     try:
-        parsed = th.device(device)
-    except (RuntimeError, ValueError):
-        raise ConfigError(f"--device {device!r} is not a torch device; use cpu, cuda, cuda:<index> or auto.") from None
-    if parsed.type == "cuda" and not th.cuda.is_available():
-        raise ConfigError(f"--device {device}: no CUDA device is available here; use --device cpu (or auto).")
+        checks.check_device("--device", device, cpu_fallback=False)
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
 
 
 def check_folder(option: str, folder: str | os.PathLike | None) -> None:

@@ -151,7 +151,6 @@ class Experiment:
         self.model, _, self.config_callbacks, self.resolved_hyperparams = build_model(
             self.algo, self.task, self.hyperparams, n_games=self.n_games, seed=self.seed, env=self.env, **model_kwargs
         )
-        check_intrinsic_reward(self.model)
         return self.model
 
     def load(
@@ -239,25 +238,6 @@ def _whole(name: str, value: Any, low: int) -> int:
     if isinstance(value, bool) or not whole or value < low:
         raise ValueError(f"Experiment: {name} must be an integer >= {low}, got {value!r}.")
     return int(value)
-
-
-def check_intrinsic_reward(model: BaseAlgorithm) -> None:
-    """Build the intrinsic-reward callback the model adds at ``learn()`` (``intrinsic_reward``, ``intrinsic_coef``,
-    ``intrinsic_kwargs``) once now, so that a bad ``intrinsic_kwargs`` (``variant="bogus"``) fails before training.
-
-    :raises ValueError: naming ``intrinsic_kwargs`` and the callback's message
-    """
-    from sb3_saeir.mappo.mappo import INTRINSIC_REWARDS
-
-    name = getattr(model, "intrinsic_reward", None)
-    if name is None or name not in INTRINSIC_REWARDS:
-        return
-    coef = getattr(model, "intrinsic_coef", None)
-    kwargs = dict(getattr(model, "intrinsic_kwargs", None) or {})
-    try:
-        INTRINSIC_REWARDS[name](**({} if coef is None else {"coef": coef}), **kwargs)
-    except (TypeError, ValueError) as error:
-        raise ValueError(f"intrinsic_kwargs={kwargs!r} of intrinsic_reward={name!r}: {error}") from error
 
 
 # ---------------------------------------------------------------------------------------------------- saved models

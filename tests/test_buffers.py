@@ -71,7 +71,8 @@ def test_per_scale_gae_with_bonus_matches_hand_loop():
     last_dones = (rng.random(buffer.n_envs) < 0.5).astype(np.float32)
     bonus = rng.random((buffer.buffer_size, buffer.n_envs, 2)).astype(np.float32)
     buffer.add_intrinsic_rewards(bonus)
-    buffer.compute_returns_and_advantage(th.as_tensor(last_values), last_dones, denormalize=lambda v: v * sigma + mu)
+    buffer.set_last_step(th.as_tensor(last_values), last_dones, denormalize=lambda v: v * sigma + mu)
+    buffer.compute_returns_and_advantage()
     advantages, returns = reference_gae(
         buffer.rewards,
         bonus,
@@ -85,10 +86,9 @@ def test_per_scale_gae_with_bonus_matches_hand_loop():
     )
     np.testing.assert_allclose(buffer.advantages, advantages, atol=1e-5)
     np.testing.assert_allclose(buffer.returns, returns, atol=1e-5)
-    # the deprecated recompute runs the same GAE again (same last values, dones and de-normaliser)
-    with pytest.warns(DeprecationWarning, match="compute_returns_and_advantage"):
-        buffer.recompute_returns_and_advantage()
-    np.testing.assert_allclose(buffer.advantages, advantages, atol=1e-5)
+    # the values in return space are computed once, by set_last_step, and kept for the algorithm's logs
+    np.testing.assert_array_equal(buffer.denormalized_values, buffer.values * sigma + mu)
+    np.testing.assert_array_equal(buffer.denormalized_last_values, last_values * sigma + mu)
     # a bonus shared by every scale broadcasts
     buffer.add_intrinsic_rewards(np.ones((buffer.buffer_size, buffer.n_envs)))
     np.testing.assert_allclose(buffer.intrinsic_rewards, bonus + 1.0, atol=1e-6)
@@ -96,11 +96,19 @@ def test_per_scale_gae_with_bonus_matches_hand_loop():
         buffer.add_intrinsic_rewards(np.ones((3, 3)))
 
 
+def test_gae_needs_the_bootstrap():
+    buffer = make_buffer()
+    fill(buffer, np.random.default_rng(3))
+    with pytest.raises(RuntimeError, match="set_last_step"):
+        buffer.compute_returns_and_advantage()
+
+
 def test_minibatches_are_whole_games_and_cover_every_step_once():
     rng = np.random.default_rng(1)
     buffer = make_buffer(n_steps=7, n_games=3, chunk=3)  # 7 steps, chunks of 3 -> last chunk padded
     fill(buffer, rng)
-    buffer.compute_returns_and_advantage(th.zeros(buffer.n_envs, 2), np.zeros(buffer.n_envs))
+    buffer.set_last_step(th.zeros(buffer.n_envs, 2), np.zeros(buffer.n_envs))
+    buffer.compute_returns_and_advantage()
     seen = np.zeros((7, 3), dtype=int)
     observations = buffer.observations.reshape(7, 3, 3, 4)  # (T, G, N, d)
     for samples in buffer.get(n_minibatches=4):
@@ -127,7 +135,8 @@ def test_standardized_advantages_per_scale():
     rng = np.random.default_rng(2)
     buffer = make_buffer()
     fill(buffer, rng)
-    buffer.compute_returns_and_advantage(th.zeros(buffer.n_envs, 2), np.zeros(buffer.n_envs))
+    buffer.set_last_step(th.zeros(buffer.n_envs, 2), np.zeros(buffer.n_envs))
+    buffer.compute_returns_and_advantage()
     standardized = buffer.standardized_advantages()
     for k in range(2):
         assert abs(standardized[..., k].mean()) < 1e-5

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Generator
 from typing import NamedTuple
 
@@ -132,7 +131,7 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     the (already scaled) intrinsic reward of every scale, GRU states per step, and per-scale returns and advantages.
 
     Per-scale GAE (``docs/method.md``, "GAE per scale"), with :math:`D_K` the scale's ValueNorm denormalisation
-    (passed to :meth:`compute_returns_and_advantage`), :math:`r^K_t` the scale's reward (the env reward plus that
+    (passed to :meth:`set_last_step`), :math:`r^K_t` the scale's reward (the env reward plus that
     scale's truncation bootstrap, stored by :meth:`add`) and :math:`m_{t+1} = 1 - \\text{episode\\_start}_{t+1}`:
 
     .. math::
@@ -159,6 +158,7 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
     """
 
     values: np.ndarray
+    denormalized_values: np.ndarray
     returns: np.ndarray
     advantages: np.ndarray
 
@@ -186,6 +186,7 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
         self.critic_hidden_size = critic_hidden_size
         self.data_chunk_length = data_chunk_length
         self.last_values: np.ndarray | None = None
+        self.denormalized_last_values: np.ndarray | None = None
         self.last_dones: np.ndarray | None = None
         super().__init__(buffer_size, observation_space, action_space, device, gae_lambda, gamma, n_envs)  # type: ignore[arg-type]
         self.gamma, self.gae_lambda = gamma, gae_lambda
@@ -197,6 +198,7 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
         shape_k = (self.buffer_size, self.n_envs, self.n_scales)
         self.rewards = np.zeros(shape_k, dtype=np.float32)
         self.values = np.zeros(shape_k, dtype=np.float32)
+        self.denormalized_values = np.zeros(shape_k, dtype=np.float32)  # set by set_last_step
         self.returns = np.zeros(shape_k, dtype=np.float32)
         self.advantages = np.zeros(shape_k, dtype=np.float32)
         self.intrinsic_rewards = np.zeros(shape_k, dtype=np.float32)
@@ -205,8 +207,8 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
             (self.buffer_size, self.n_scales, self.n_games, self.n_agents, self.critic_hidden_size), dtype=np.float32
         )
         self.last_values = None
+        self.denormalized_last_values = None
         self.last_dones = None
-        self._denormalize: Callable[[np.ndarray], np.ndarray] | None = None
 
     def add(  # type: ignore[override]
         self,
@@ -256,41 +258,44 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
             )
         self.intrinsic_rewards += bonus
 
-    def set_last_step(self, last_values: th.Tensor, dones: np.ndarray) -> None:
-        """Store the rollout's bootstrap: the values after the last step and whether that step ended an episode.
-
-        Set before the intrinsic rewards are computed (SAEIR's ``"paper"`` variant looks one step ahead).
-
-        :param last_values: normalised values ``(n_envs, K)`` of the observation after the last step
-        :param dones: ``(n_envs,)`` whether the last step ended an episode
-        """
-        self.last_values = last_values.detach().cpu().numpy().reshape(self.n_envs, self.n_scales)
-        self.last_dones = np.asarray(dones, dtype=np.float32).reshape(self.n_envs)
-
-    def compute_returns_and_advantage(  # type: ignore[override]
+    def set_last_step(
         self,
         last_values: th.Tensor,
         dones: np.ndarray,
         denormalize: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
-        """Per-scale GAE on denormalised values, with the intrinsic rewards stored so far.
+        """Store the rollout's bootstrap, the values after the last step and whether that step ended an episode, and
+        the rollout's values in return space (:attr:`denormalized_values`, :attr:`denormalized_last_values`), once:
+        GAE and the algorithm's logs read them.
+
+        Set when the rollout is full, before the intrinsic rewards are computed (SAEIR's ``"paper"`` variant looks one
+        step ahead).
 
         :param last_values: normalised values ``(n_envs, K)`` of the observation after the last step
         :param dones: ``(n_envs,)`` whether the last step ended an episode
         :param denormalize: maps normalised values ``(..., K)`` to return space (the policy's
             ``denormalize_values_numpy``); ``None`` when the values are not normalised
         """
-        self.set_last_step(last_values, dones)
-        self._denormalize = denormalize
-        assert self.last_values is not None and self.last_dones is not None
-        values = self.values if denormalize is None else denormalize(self.values)  # (T, E, K)
-        last_values_np = self.last_values if denormalize is None else denormalize(self.last_values)  # (E, K)
+        self.last_values = last_values.detach().cpu().numpy().reshape(self.n_envs, self.n_scales)
+        self.last_dones = np.asarray(dones, dtype=np.float32).reshape(self.n_envs)
+        self.denormalized_values = self.values if denormalize is None else denormalize(self.values)  # (T, E, K)
+        self.denormalized_last_values = self.last_values if denormalize is None else denormalize(self.last_values)  # (E, K)
+
+    def compute_returns_and_advantage(self) -> None:  # type: ignore[override]
+        """Per-scale GAE on the values in return space, with the bootstrap of :meth:`set_last_step` and the intrinsic
+        rewards stored so far.
+
+        :raises RuntimeError: when :meth:`set_last_step` was not called since the last :meth:`reset`
+        """
+        if self.last_dones is None or self.denormalized_last_values is None:
+            raise RuntimeError("set_last_step(last_values, dones, denormalize) must be called before GAE.")
+        values = self.denormalized_values  # (T, E, K)
         rewards = self.rewards + self.intrinsic_rewards  # (T, E, K)
         last_gae_lam = np.zeros((self.n_envs, self.n_scales), dtype=np.float32)
         for step in reversed(range(self.buffer_size)):
             if step == self.buffer_size - 1:
                 next_non_terminal = 1.0 - self.last_dones
-                next_values = last_values_np
+                next_values = self.denormalized_last_values
             else:
                 next_non_terminal = 1.0 - self.episode_starts[step + 1]
                 next_values = values[step + 1]
@@ -298,21 +303,6 @@ class GroupedRecurrentRolloutBuffer(RolloutBuffer):
             last_gae_lam = delta + self.gamma * self.gae_lambda * next_non_terminal[:, None] * last_gae_lam
             self.advantages[step] = last_gae_lam
         self.returns = (self.advantages + values).astype(np.float32)
-
-    def recompute_returns_and_advantage(self) -> None:
-        """Deprecated: GAE now runs once, after the intrinsic rewards (see :meth:`compute_returns_and_advantage`).
-
-        Runs GAE again with the last values, dones and de-normaliser of the previous call.
-        """
-        warnings.warn(
-            "recompute_returns_and_advantage is deprecated: MAPPO/SAEIR_PPO add every intrinsic reward before the "
-            "single GAE pass; call compute_returns_and_advantage(last_values, dones, denormalize) instead.",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        if self.last_values is None or self.last_dones is None:
-            raise RuntimeError("compute_returns_and_advantage must be called once before recomputing.")
-        self.compute_returns_and_advantage(th.as_tensor(self.last_values), self.last_dones, self._denormalize)
 
     # ------------------------------------------------------------------------------------------------ sampling
     def n_chunks(self) -> int:

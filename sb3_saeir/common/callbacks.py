@@ -5,7 +5,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback
+from stable_baselines3.common.type_aliases import MaybeCallback
 
 # Keys of SB3's own episode dicts, logged by SB3 itself (``rollout/ep_rew_mean``, ``rollout/ep_len_mean``).
 _SB3_EPISODE_KEYS = ("r", "l", "t")
@@ -25,6 +26,23 @@ def episode_metric_means(ep_info_buffer: list[dict] | None) -> dict[str, float]:
         values = [float(info[name]) for info in ep_info_buffer if name in info]
         means[name] = float(np.mean(values))
     return means
+
+
+def flatten_callbacks(callback: MaybeCallback) -> list[BaseCallback]:
+    """The callbacks given to ``learn`` as a flat list (``CallbackList`` and lists unpacked, recursively; a function
+    wrapped in SB3's ``ConvertCallback``).
+
+    :param callback: the ``callback`` argument of ``learn``
+    """
+    if callback is None:
+        return []
+    if isinstance(callback, CallbackList):
+        return [c for inner in callback.callbacks for c in flatten_callbacks(inner)]
+    if isinstance(callback, list):
+        return [c for inner in callback for c in flatten_callbacks(inner)]
+    if isinstance(callback, BaseCallback):
+        return [callback]
+    return [ConvertCallback(callback)]
 
 
 class EpisodeMetricsCallback(BaseCallback):

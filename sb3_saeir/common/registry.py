@@ -1,8 +1,10 @@
-"""Registry of task ids: a name -> a factory returning one PettingZoo ``ParallelEnv`` (one game).
+"""The package's registries: task ids (a name -> a factory returning one PettingZoo ``ParallelEnv``, one game) and
+intrinsic-reward names (``intrinsic_reward="saeir"`` -> the callback class the algorithm adds).
 
-This module holds the registry's storage and lookups; the package's own tasks are registered into it by
-:mod:`sb3_saeir.envs.registry` (run by ``import sb3_saeir``, hence by importing any ``sb3_saeir`` module). The same
-functions are importable from ``sb3_saeir.envs`` and ``sb3_saeir.envs.registry``.
+This module holds the registries' storage and lookups; the package's own tasks are registered into it by
+:mod:`sb3_saeir.envs.registry` and its bonuses by their modules in :mod:`sb3_saeir.intrinsic` (both run by
+``import sb3_saeir``, hence by importing any ``sb3_saeir`` module). The task functions are importable from
+``sb3_saeir.envs`` and ``sb3_saeir.envs.registry``, :func:`register_intrinsic_reward` from ``sb3_saeir.intrinsic``.
 
 A task may also offer a native multi-agent vec env of many games, which ``make_multiagent_vec_env`` uses instead of
 SuperSuit (see ``docs/tasks.md``): registered with the task (``vec_env_entry_point``, as the navigation tasks are), or
@@ -15,9 +17,12 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from pettingzoo.utils.env import ParallelEnv
+from stable_baselines3.common.callbacks import BaseCallback
+
+BonusClass = TypeVar("BonusClass", bound=type[BaseCallback])
 
 
 def load_entry_point(entry_point: str) -> Callable[..., Any]:
@@ -171,3 +176,35 @@ def get_native_vec_env_factory(task: str | Callable[..., Any]) -> Callable[..., 
 def make_task(task_id: str, **kwargs: Any) -> ParallelEnv:
     """Build one game (a PettingZoo ``ParallelEnv``) of a registered task."""
     return get_task_factory(task_id)(**kwargs)
+
+
+# ------------------------------------------------------------------------------------------------ intrinsic rewards
+# ``intrinsic_reward=<name>`` -> the IntrinsicRewardCallback subclass the algorithm adds (:func:`register_intrinsic_reward`)
+INTRINSIC_REWARDS: dict[str, type[BaseCallback]] = {}
+
+
+def register_intrinsic_reward(name: str) -> Callable[[BonusClass], BonusClass]:
+    """Class decorator: make an :class:`~sb3_saeir.intrinsic.IntrinsicRewardCallback` subclass available as
+    ``MAPPO(..., intrinsic_reward=name)`` (and in configs), without editing the algorithm. Re-registering a name
+    replaces it, as :func:`register_task` does (``docs/guide/custom_env.md``, "Your own intrinsic reward")::
+
+        @register_intrinsic_reward("count")
+        class CountBonus(IntrinsicRewardCallback): ...
+
+    :param name: the ``intrinsic_reward`` value that selects the class
+    :return: the decorator, which returns the class unchanged
+    """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"register_intrinsic_reward: the name must be a non-empty string, got {name!r}.")
+
+    def register(bonus_class: BonusClass) -> BonusClass:
+        # IntrinsicRewardCallback lives above this module (sb3_saeir.intrinsic): its interface is checked instead
+        if not (isinstance(bonus_class, type) and issubclass(bonus_class, BaseCallback) and hasattr(bonus_class, "add_to")):
+            raise TypeError(
+                f"register_intrinsic_reward({name!r}): {bonus_class!r} is not a subclass of "
+                "sb3_saeir.intrinsic.IntrinsicRewardCallback."
+            )
+        INTRINSIC_REWARDS[name] = bonus_class
+        return bonus_class
+
+    return register

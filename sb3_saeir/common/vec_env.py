@@ -34,6 +34,7 @@ from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn, VecEnvWrapper
 
 from sb3_saeir.common.atomic import atomic_write_text, keep_damaged
+from sb3_saeir.common.checks import check_action_space
 from sb3_saeir.common.game_workers import GameFaultError, GameWorkerPool, GameWorkerVecEnv, exit_if_importing_main
 from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
 from sb3_saeir.common.utils import check_bool, check_seed, usable_cores
@@ -305,19 +306,6 @@ def warn_more_workers_than_cores(num_cpus: int, n_games: int) -> None:
         )
 
 
-def check_action_space(action_space: spaces.Space) -> None:
-    """Refuse ``Discrete(n, start != 0)`` action spaces: the policies' categorical actions are 0 .. n - 1.
-
-    :param action_space: an agent's action space
-    :raises ValueError: naming the space and the fix
-    """
-    if isinstance(action_space, spaces.Discrete) and int(action_space.start) != 0:
-        raise ValueError(
-            f"Action space {action_space} starts at {int(action_space.start)}: the policies emit actions 0 .. n - 1, "
-            f"so declare Discrete({int(action_space.n)}) and add {int(action_space.start)} to the action inside the env."
-        )
-
-
 class NonFiniteValueError(ValueError):
     """An env returned a NaN or infinite observation or reward."""
 
@@ -404,7 +392,7 @@ class MultiAgentVecEnv(VecEnv):
             warn_more_workers_than_cores(num_cpus, n_games)
         probe_env = env_fn()
         check_parallel_env(probe_env)
-        check_action_space(probe_env.action_space(probe_env.possible_agents[0]))
+        check_action_space("make_multiagent_vec_env", probe_env.action_space(probe_env.possible_agents[0]))
         self.possible_agents: list[str] = list(probe_env.possible_agents)
         self.n_agents = len(self.possible_agents)
         self.n_games = int(n_games)

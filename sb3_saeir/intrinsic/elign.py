@@ -17,6 +17,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.registry import register_intrinsic_reward
 from sb3_saeir.intrinsic.base import NextObservationRecorder
 
 PositionFn = Callable[[th.Tensor], th.Tensor]
@@ -199,6 +200,7 @@ class ForwardModel(nn.Module):
 
 
 # ---------------------------------------------------------------------------------------------------- the callback
+@register_intrinsic_reward("elign")
 class ElignCallback(NextObservationRecorder):
     r"""Elign's team expectation-alignment bonus (``elign_team``; Ma, Wang, Fei-Fei, Bernstein, Krishna,
     "ELIGN: Expectation Alignment as a Multi-Agent Intrinsic Reward", NeurIPS 2022, https://arxiv.org/abs/2210.04365)

@@ -15,6 +15,7 @@ from stable_baselines3.common.utils import get_device
 from torch import nn
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.registry import register_intrinsic_reward
 from sb3_saeir.intrinsic.base import NextObservationRecorder, true_next_observations
 
 _INPUTS = ("agent", "joint")
@@ -35,6 +36,7 @@ def _mlp(input_dim: int, net_arch: Sequence[int], output_dim: int) -> nn.Sequent
     return nn.Sequential(*layers)
 
 
+@register_intrinsic_reward("rnd")
 class RNDCallback(NextObservationRecorder):
     r"""Random network distillation bonus for cooperative multi-agent PPO (Burda et al., 2019,
     https://arxiv.org/abs/1810.12894).

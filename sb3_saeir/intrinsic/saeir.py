@@ -6,6 +6,7 @@ Reference: ``docs/method.md``, "The intrinsic reward" (the released code) and th
 import numpy as np
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.registry import register_intrinsic_reward
 from sb3_saeir.common.utils import check_bool
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 
@@ -297,6 +298,7 @@ def value_softmax_entropy(values: np.ndarray) -> np.ndarray:
     return log_sum - (probs * values).sum(axis=0)
 
 
+@register_intrinsic_reward("saeir")
 class SAEIRCallback(IntrinsicRewardCallback):
     """SAEIR as a callback: the bonus of every critic scale from that scale's stored values (``docs/method.md``,
     "The intrinsic reward").

@@ -1,0 +1,432 @@
+"""Argument checks of the algorithms, the vec env and the command line: each one refuses a bad value in one line that
+names the argument, the value and the fix, before anything is built or written (``docs/guide/algorithms.md``).
+
+One implementation per check, used by every caller: :class:`~sb3_saeir.MAPPO` / :class:`~sb3_saeir.SAEIR_PPO`
+(constructor, ``load``, ``save``), :func:`~sb3_saeir.make_multiagent_vec_env` (the action space) and
+``python -m sb3_saeir.train`` (the device, through :func:`sb3_saeir.config.check_device`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import inspect
+import json
+import os
+import pathlib
+import pickle
+import warnings
+import zipfile
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
+from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
+from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
+from sb3_saeir.common.utils import check_bool, unwritable_folder
+
+# Valid range of each numeric argument: (test, description). Schedules (callables) are not checked.
+_RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
+    "learning_rate": (lambda x: x > 0, "> 0"),
+    "n_steps": (lambda x: x >= 1, ">= 1"),
+    "n_epochs": (lambda x: x >= 1, ">= 1"),
+    "gamma": (lambda x: 0 <= x <= 1, "in [0, 1]"),
+    "gae_lambda": (lambda x: 0 <= x <= 1, "in [0, 1]"),
+    "clip_range": (lambda x: x > 0, "> 0"),
+    "ent_coef": (lambda x: x >= 0, ">= 0"),
+    "vf_coef": (lambda x: x >= 0, ">= 0"),
+    "max_grad_norm": (lambda x: x > 0, "> 0"),
+    "n_minibatches": (lambda x: x >= 1, ">= 1"),
+    "data_chunk_length": (lambda x: x >= 1, ">= 1"),
+    "intrinsic_coef": (lambda x: x >= 0, ">= 0 (or None for the bonus's default)"),
+    "huber_delta": (lambda x: x > 0, "> 0"),
+    "target_kl": (lambda x: x > 0, "> 0 (or None)"),
+    "clip_range_vf": (lambda x: x > 0 or x == VALUE_CLIPPING_OFF, "> 0, or -1 to turn value clipping off (or None)"),
+    "stats_window_size": (lambda x: x >= 1, ">= 1"),
+    "total_timesteps": (lambda x: x >= 1, ">= 1"),
+}
+MINIBATCH_ARGUMENTS = {"batch_size", "n_minibatches", "n_steps", "data_chunk_length"}
+INTRINSIC_ARGUMENTS = {"intrinsic_reward", "intrinsic_coef", "intrinsic_kwargs"}
+_INTEGER_ARGUMENTS = ("n_steps", "n_epochs", "n_minibatches", "data_chunk_length", "stats_window_size", "total_timesteps")
+_BOOL_ARGUMENTS = ("normalize_advantage", "normalize_values")
+VALUE_CLIPPING_OFF = -1  # the clip_range_vf that turns value clipping off
+_ENV_EXAMPLE = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
+
+
+# ------------------------------------------------------------------------------------------------ numbers and switches
+def check_ranges(algo_name: str, **values: Any) -> None:
+    """Raise a ``ValueError`` naming the first argument outside its valid range (``None`` and schedules pass).
+
+    :param algo_name: class name for the message
+    :param values: argument name -> value, for names in ``_RANGES``
+    """
+    for name, value in values.items():
+        if value is None or callable(value):
+            continue
+        if name in _INTEGER_ARGUMENTS and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
+            raise ValueError(f"{algo_name}: {name} must be an integer, got {value!r}.")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
+            raise ValueError(f"{algo_name}: {name} must be a finite number, got {value!r}.")
+        test, rule = _RANGES[name]
+        if not test(float(value)):
+            raise ValueError(f"{algo_name}: {name}={value!r} is out of range; it must be {rule}.")
+
+
+def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool = False) -> None:
+    """The constructor's checks on the values ``load`` sets without the constructor (``kwargs`` and
+    ``custom_objects``): ranges, booleans, ``value_loss`` and ``double_buffered``.
+
+    :param algo_name: class name for the message
+    :param overrides: argument name -> value
+    :param inference: loaded for inference only (rl-zoo3's enjoy: ``custom_objects={"learning_rate": 0.0, ...}``), so
+        ``learning_rate`` is not checked
+    """
+    skipped = {"learning_rate"} if inference else set()
+    check_ranges(algo_name, **{key: value for key, value in overrides.items() if key in _RANGES and key not in skipped})
+    check_bool(algo_name, **{key: value for key, value in overrides.items() if key in _BOOL_ARGUMENTS})
+    if "value_loss" in overrides:
+        check_value_loss(algo_name, overrides["value_loss"])
+    if "double_buffered" in overrides:
+        check_double_buffered(algo_name, overrides["double_buffered"])
+
+
+def check_value_loss(algo_name: str, value_loss: Any) -> None:
+    """Refuse a ``value_loss`` other than ``"huber"`` or ``"mse"``.
+
+    :param algo_name: class name for the message
+    :param value_loss: ``value_loss`` argument
+    """
+    if value_loss not in ("huber", "mse"):
+        raise ValueError(f"{algo_name}: value_loss must be 'huber' or 'mse', got {value_loss!r}.")
+
+
+def check_double_buffered(algo_name: str, double_buffered: Any) -> None:
+    """Refuse a ``double_buffered`` other than ``True``, ``False`` or ``"auto"``.
+
+    :param algo_name: class name for the message
+    :param double_buffered: ``double_buffered`` argument
+    """
+    if not (isinstance(double_buffered, bool) or double_buffered == "auto"):
+        raise ValueError(f"{algo_name}: double_buffered must be True, False or 'auto', got {double_buffered!r}.")
+
+
+def valid_batch_sizes(n_steps: int, n_games: int, n_agents: int, data_chunk_length: int) -> list[int]:
+    """Batch sizes (agent-samples) that split a rollout into equal minibatches of whole (game, chunk) blocks.
+
+    When ``n_steps`` is not a multiple of ``data_chunk_length``, blocks differ in length and only the whole rollout
+    (one minibatch) qualifies.
+    """
+    if n_steps % data_chunk_length != 0:
+        return [n_steps * n_games * n_agents]
+    block = data_chunk_length * n_agents
+    blocks = n_blocks(n_steps, n_games, data_chunk_length)
+    return [block * per_batch for per_batch in range(1, blocks + 1) if blocks % per_batch == 0]
+
+
+def resolve_minibatches(
+    n_steps: int, n_games: int, n_agents: int, data_chunk_length: int, batch_size: int | None, n_minibatches: int
+) -> int:
+    """The number of minibatches per epoch: from ``batch_size`` when given (it must split the rollout into equal
+    minibatches of whole (game, chunk) blocks), else ``n_minibatches`` (at most one per block).
+
+    :param n_steps: steps per game per rollout
+    :param n_games: games of the env
+    :param n_agents: agents per game
+    :param data_chunk_length: steps per training chunk
+    :param batch_size: ``batch_size`` argument (agent-samples), or ``None``
+    :param n_minibatches: ``n_minibatches`` argument
+    """
+    blocks = n_blocks(n_steps, n_games, data_chunk_length)
+    if batch_size is None:
+        if not 1 <= n_minibatches <= blocks:
+            raise ValueError(
+                f"n_minibatches={n_minibatches} must be between 1 and the number of (game, chunk) blocks "
+                f"{blocks} (= {n_games} games x ceil(n_steps={n_steps} / data_chunk_length={data_chunk_length}))."
+            )
+        return n_minibatches
+    valid = valid_batch_sizes(n_steps, n_games, n_agents, data_chunk_length)
+    if batch_size not in valid:
+        hint = f"valid batch sizes: {valid}"
+        if n_steps % data_chunk_length != 0:
+            hint += (
+                f" (n_steps={n_steps} is not a multiple of data_chunk_length={data_chunk_length}, so only the whole "
+                "rollout splits into equal whole blocks)"
+            )
+        raise ValueError(
+            f"batch_size={batch_size} cannot be formed from whole (game, {data_chunk_length}-step chunk) blocks of "
+            f"{n_agents} agents ({data_chunk_length * n_agents} agent-samples each) in a rollout of {n_steps} steps x "
+            f"{n_games} games; {hint}. Or leave batch_size=None and set n_minibatches instead."
+        )
+    return n_steps * n_games * n_agents // batch_size
+
+
+# ------------------------------------------------------------------------------------------------ env and spaces
+def check_env_argument(algo_name: str, env: Any) -> None:
+    """Reject an env that is not a (multi-agent) vec env with a message naming ``make_multiagent_vec_env``.
+
+    :param algo_name: class name for the message
+    :param env: the ``env`` argument
+    """
+    if isinstance(env, VecEnv):
+        check_observation_space(algo_name, env.observation_space)
+        check_action_space(algo_name, env.action_space)
+    if env is None or isinstance(env, VecEnv):
+        return
+    if isinstance(env, str):
+        what = f"the task id {env!r}" if env in list_tasks() else f"the string {env!r}"
+        raise ValueError(
+            f"{algo_name} needs a multi-agent vec env, got {what}; build it with sb3_saeir.make_multiagent_vec_env("
+            f"{env!r}, n_games=...) (e.g. {_ENV_EXAMPLE}). Tasks: sb3_saeir.list_tasks()."
+        )
+    if type(env).__module__.startswith("pettingzoo") or hasattr(env, "possible_agents"):
+        raise ValueError(
+            f"{algo_name} needs a multi-agent vec env, got the PettingZoo env {type(env).__name__}; wrap copies of it "
+            "with sb3_saeir.make_multiagent_vec_env(<a function returning one ParallelEnv>, n_games=...) "
+            "(an AEC env first goes through pettingzoo.utils.aec_to_parallel)."
+        )
+    raise ValueError(
+        f"{algo_name} needs a multi-agent vec env (one slot per agent of each game), got {type(env).__name__}; "
+        f"build one with sb3_saeir.make_multiagent_vec_env (e.g. {_ENV_EXAMPLE})."
+    )
+
+
+def check_n_agents(algo_name: str, env: VecEnv, expected: int | None = None) -> int:
+    """The agents per game of a multi-agent vec env (its ``n_agents``), refused when missing, when not dividing
+    ``num_envs``, or when not the ``expected`` number of a built model (``load(path, env)``, ``set_env``).
+
+    :param algo_name: class name for the message
+    :param env: the vec env
+    :param expected: the model's agents per game (``None``: any)
+    """
+    n_agents = getattr(env, "n_agents", None)
+    if n_agents is None:
+        raise ValueError(
+            f"{type(env).__name__} does not say how many agents a game has (no `n_agents`). MAPPO and SAEIR_PPO "
+            "need the multi-agent vec env of sb3_saeir.make_multiagent_vec_env(task, n_games), whose slots are "
+            "game * n_agents + agent."
+        )
+    if env.num_envs % n_agents != 0:
+        raise ValueError(f"env.num_envs={env.num_envs} is not a multiple of n_agents={n_agents}.")
+    if expected is not None and n_agents != expected:
+        raise ValueError(
+            f"{algo_name}: the model was built for {expected} agents per game, the env has {n_agents}; pass an env "
+            f"with {expected} agents per game."
+        )
+    return int(n_agents)
+
+
+def check_policy_class(algo_name: str, policy_class: Any, aliases: Iterable[str]) -> type[MultiAgentActorCriticPolicy]:
+    """Refuse a policy that is not a :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy`.
+
+    :param algo_name: class name for the message
+    :param policy_class: the policy class (an alias already resolved)
+    :param aliases: the algorithm's policy aliases, for the message
+    :return: the class
+    """
+    if not (isinstance(policy_class, type) and issubclass(policy_class, MultiAgentActorCriticPolicy)):
+        name = getattr(policy_class, "__name__", repr(policy_class))
+        raise ValueError(
+            f"{algo_name} needs a MultiAgentActorCriticPolicy: one of {sorted(aliases)} or a subclass of "
+            f"sb3_saeir.common.policies.MultiAgentActorCriticPolicy, got {name}."
+        )
+    return policy_class
+
+
+def check_rollout_buffer_class(rollout_buffer_class: Any) -> type[GroupedRecurrentRolloutBuffer]:
+    """Refuse a rollout buffer that is not a :class:`~sb3_saeir.common.buffers.GroupedRecurrentRolloutBuffer`.
+
+    :param rollout_buffer_class: ``rollout_buffer_class`` argument (``None`` already replaced by the default)
+    :return: the class
+    """
+    if not (isinstance(rollout_buffer_class, type) and issubclass(rollout_buffer_class, GroupedRecurrentRolloutBuffer)):
+        raise ValueError(f"rollout_buffer_class must be a GroupedRecurrentRolloutBuffer subclass, got {rollout_buffer_class}.")
+    return rollout_buffer_class
+
+
+def check_observation_space(algo_name: str, observation_space: spaces.Space) -> None:
+    """Reject observations that are not flat ``Box`` vectors, showing the env's own shape (before SB3 transposes
+    images) and the SuperSuit wrapper that flattens them.
+
+    :param algo_name: class name for the message
+    :param observation_space: one agent's observation space, as the env declares it
+    """
+    if isinstance(observation_space, spaces.Box) and len(observation_space.shape) == 1:
+        return
+    shape = getattr(observation_space, "shape", None)
+    described = f"{type(observation_space).__name__} of shape {shape}" if shape else str(observation_space)
+    raise ValueError(
+        f"{algo_name} needs flat Box observations per agent (a vector), got {described}. Flatten them in the env: "
+        "supersuit.flatten_v0(parallel_env) before make_multiagent_vec_env (images: supersuit.resize_v1 first to keep "
+        "them small)."
+    )
+
+
+def check_action_space(owner: str, action_space: spaces.Space) -> None:
+    """Reject ``Discrete`` / ``MultiDiscrete`` action spaces whose ``start`` is not 0: the policies sample actions
+    ``0 .. n - 1`` (as SB3 does), so every action the env received would be off by ``start``.
+
+    :param owner: who checks, for the message (``"MAPPO"``, ``"make_multiagent_vec_env"``)
+    :param action_space: one agent's action space, as the env declares it
+    """
+    if not isinstance(action_space, (spaces.Discrete, spaces.MultiDiscrete)):
+        return
+    start = np.asarray(action_space.start)
+    if not np.any(start != 0):
+        return
+    if isinstance(action_space, spaces.Discrete):
+        declared, offset = f"Discrete({int(action_space.n)})", str(int(start))
+    else:
+        declared, offset = f"MultiDiscrete({action_space.nvec.tolist()})", str(start.tolist())
+    raise ValueError(
+        f"{owner}: the action space {action_space} starts at {offset}, but the policies sample actions 0 .. n - 1, so "
+        f"the env would get every action shifted; declare {declared} and add {offset} to the action inside the env."
+    )
+
+
+# ------------------------------------------------------------------------------------------------ intrinsic rewards
+def check_intrinsic_reward(
+    algo_name: str, intrinsic_reward: Any, intrinsic_coef: float | None, intrinsic_kwargs: dict[str, Any] | None
+) -> BaseCallback | None:
+    """Check the intrinsic-reward arguments at construction by building the callback (unknown names and keys, bad
+    variants and kwargs given without a bonus fail here, not at ``learn``); the callback built is returned, for the
+    algorithm to add at ``learn`` (``None`` without a bonus).
+
+    :param algo_name: class name for the message
+    :param intrinsic_reward: ``intrinsic_reward`` argument: a name registered with
+        :func:`~sb3_saeir.common.registry.register_intrinsic_reward`, or ``None``
+    :param intrinsic_coef: ``intrinsic_coef`` argument
+    :param intrinsic_kwargs: ``intrinsic_kwargs`` argument
+    """
+    if intrinsic_reward is None:
+        if intrinsic_kwargs:
+            raise ValueError(
+                f"{algo_name}: intrinsic_kwargs={intrinsic_kwargs!r} given with intrinsic_reward=None would be ignored; "
+                f"set intrinsic_reward (one of {sorted(INTRINSIC_REWARDS)}) or remove intrinsic_kwargs."
+            )
+        return None
+    if not isinstance(intrinsic_reward, str) or intrinsic_reward not in INTRINSIC_REWARDS:
+        raise ValueError(f"Unknown intrinsic_reward {intrinsic_reward!r}; choose one of {[*sorted(INTRINSIC_REWARDS), None]}.")
+    if intrinsic_kwargs is not None and not isinstance(intrinsic_kwargs, dict):
+        raise ValueError(f"{algo_name}: intrinsic_kwargs must be a dict, got {intrinsic_kwargs!r}.")
+    return build_intrinsic_reward(algo_name, intrinsic_reward, intrinsic_coef, intrinsic_kwargs or {})
+
+
+def build_intrinsic_reward(
+    algo_name: str, intrinsic_reward: str, intrinsic_coef: float | None, intrinsic_kwargs: dict[str, Any]
+) -> BaseCallback:
+    """The callback registered as ``intrinsic_reward``; an unknown keyword, or a value the callback refuses, is one
+    ``ValueError`` naming it.
+
+    :param algo_name: class name for the message
+    :param intrinsic_reward: a registered name
+    :param intrinsic_coef: the bonus's scale (``None``: the callback's default)
+    :param intrinsic_kwargs: the callback's other keyword arguments
+    """
+    bonus_class = INTRINSIC_REWARDS[intrinsic_reward]
+    coef = {} if intrinsic_coef is None else {"coef": intrinsic_coef}
+    parameters = inspect.signature(bonus_class.__init__).parameters
+    unknown = [key for key in intrinsic_kwargs if key not in parameters or key in ("self", "coef")]
+    if unknown:
+        valid = [name for name in parameters if name not in ("self", "coef", "verbose")]
+        raise ValueError(
+            f"{algo_name}: unknown intrinsic_kwargs key {unknown[0]!r} for intrinsic_reward={intrinsic_reward!r}; "
+            f"valid keys: {valid} (set the scale with intrinsic_coef)."
+        )
+    try:
+        return bonus_class(**coef, **intrinsic_kwargs)  # type: ignore[arg-type]
+    except TypeError as error:  # e.g. a keyword-only argument missing: the callback's own ValueErrors pass through
+        raise ValueError(
+            f"{algo_name}: intrinsic_kwargs={intrinsic_kwargs!r} of intrinsic_reward={intrinsic_reward!r}: {error}"
+        ) from None
+
+
+# ------------------------------------------------------------------------------------------------ machine and files
+def check_device(owner: str, device: Any, cpu_fallback: bool = True) -> None:
+    """Refuse a device torch does not know. Where ``"cuda"`` is asked for without CUDA, SB3 falls back to the CPU
+    silently: with ``cpu_fallback`` (the Python API; SB3 users expect the fallback) one warning line says so, without
+    (the command line) the device is refused.
+
+    :param owner: who checks, for the message: a class name (``"MAPPO: device='gpu2' is not ..."``) or a
+        command-line option (``"--device"``: ``"--device 'gpu2' is not ..."``)
+    :param device: the device asked for
+    :param cpu_fallback: warn and let SB3 train on the CPU (``True``), or refuse (``False``), where CUDA is missing
+    """
+    if isinstance(device, str) and device == "auto":
+        return
+    named = f"{owner} {device!r}" if owner.startswith("-") else f"{owner}: device={device!r}"
+    try:
+        torch_device = th.device(device)
+    except (RuntimeError, TypeError, ValueError):
+        raise ValueError(f"{named} is not a torch device; use 'auto', 'cpu', 'cuda' or 'cuda:<index>'.") from None
+    if torch_device.type != "cuda" or th.cuda.is_available():
+        return
+    if not cpu_fallback:
+        raise ValueError(f"{named}: no CUDA device is available here; use 'cpu' (or 'auto').")
+    warnings.warn(f"{named} but CUDA is not available; training on the CPU.", UserWarning, stacklevel=3)
+
+
+def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
+    """Refuse a ``tensorboard_log`` that is an existing file (SB3 would fail only at ``learn``).
+
+    :param algo_name: class name for the message
+    :param tensorboard_log: ``tensorboard_log`` argument
+    """
+    if tensorboard_log is not None and os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
+        raise ValueError(
+            f"{algo_name}: tensorboard_log={str(tensorboard_log)!r} is an existing file, not a folder; pass a folder path."
+        )
+
+
+def check_save_path(algo_name: str, path: Any) -> None:
+    """Refuse a ``save`` path where no file can be written, before anything is written: an empty name, a path under a
+    file, or in a folder that is not writable (SB3 would recurse without end under ``/proc``, or fail with the OS's
+    message). A file object passes (SB3 writes to it).
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``save``
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        return
+    if str(path) in ("", "."):
+        raise ValueError(f"{algo_name}.save: {str(path)!r} is not a file name; pass e.g. 'model.zip'.")
+    target = pathlib.Path(path)
+    if target.suffix == "":
+        target = target.with_suffix(".zip")  # as SB3's save names it (an existing folder: SB3 saves to <path>_2)
+    problem = unwritable_folder(target.parent)
+    if problem:
+        raise ValueError(f"{algo_name}.save: cannot write {str(target)!r}: {problem}; save to a folder you can write.")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ValueError(f"{algo_name}.save: {str(target)!r} exists and is not writable; save to another path.")
+
+
+@contextlib.contextmanager
+def model_zip_errors(algo_name: str, path: Any) -> Iterator[None]:
+    """Around SB3's ``load``: the errors it raises for a file that is not a complete model zip (truncated or edited)
+    become one ``ValueError`` line naming the file; the package's own ``ValueError`` (n_agents, ranges) pass through.
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``load``
+    """
+    try:
+        yield
+    except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
+        raise _incomplete_model_error(algo_name, path, error) from None
+    except ValueError as error:
+        # SB3's own ValueErrors for a damaged zip
+        if isinstance(error, json.JSONDecodeError) or "Names of parameters do not match" in str(error):
+            raise _incomplete_model_error(algo_name, path, error) from None
+        raise
+
+
+def _incomplete_model_error(algo_name: str, path: Any, error: BaseException) -> ValueError:
+    """One line for a model file that SB3 could not read back."""
+    detail = str(error).splitlines()[0] if str(error) else "no detail"
+    return ValueError(
+        f"{algo_name}.load: {str(path)!r} is not a complete sb3-saeir model zip ({type(error).__name__}: {detail}); "
+        "save the model again with model.save."
+    )

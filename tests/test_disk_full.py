@@ -1,7 +1,7 @@
 """A full disk during ``python -m sb3_saeir.train`` (an ``OSError(ENOSPC)`` from a write: a checkpoint, the final or
-best model (first written by the evaluation at the start), ``evaluations.npz``, a row of ``progress.csv`` or of ``games.monitor.csv``) ends the command in one line
-naming what failed, the run's folder and its last good checkpoint, which ``--resume`` then continues; the files
-written before are whole and no temporary file is left."""
+best model (first written by the evaluation at the start), ``evaluations.npz``, a row of ``progress.csv`` or of
+``games.monitor.csv``) ends the command in one line naming what failed, the run's folder and its last good checkpoint,
+which ``--resume`` then continues; the files written before are whole and no temporary file is left."""
 
 import errno
 import re

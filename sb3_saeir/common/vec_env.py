@@ -8,7 +8,11 @@ subprocesses; overlapping per-game seeds with ``num_cpus > 1``), so :class:`Mult
 process) or over :class:`~sb3_saeir.common.game_workers.GameWorkerVecEnv` (games in worker processes, with shared-memory
 buffers and one message per worker and step; SuperSuit's own worker path kept the second core idle a quarter of the
 time, ``docs/guide/performance.md``). The games step alike on both paths (same seeds, same streams; tested).
-Double-buffered sampling steps each worker's games on their own (:attr:`MultiAgentVecEnv.sampling_groups`).
+Double-buffered sampling steps each worker's games on their own (:attr:`GroupedVecEnv.sampling_groups`).
+
+:class:`GroupedVecEnv` is what the algorithms train on and what :class:`MultiAgentVecEnv` and the navigation tasks'
+:class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` share: the layout, seeding, resets, NaN/inf checks, episode
+records, per-game access and grouped stepping; each subclass only steps its games.
 
 Slot layout: ``slot = game * n_agents + agent`` with agents in ``possible_agents`` order. All agents of a game
 reset together. Episode statistics are recorded once per game (not once per agent, as ``VecMonitor`` would).
@@ -999,7 +1003,8 @@ def make_multiagent_vec_env(
 
 
 def is_multiagent_vec_env(env: Any) -> bool:
-    """True if ``env`` (possibly inside SB3 ``VecEnvWrapper`` objects) exposes ``n_agents`` and ``n_games``."""
+    """True if ``env`` (possibly inside SB3 ``VecEnvWrapper`` objects) exposes ``n_agents`` and ``n_games`` (as every
+    :class:`GroupedVecEnv` does; wrappers forward the attributes)."""
     return getattr(env, "n_agents", None) is not None and getattr(env, "n_games", None) is not None
 
 
@@ -1011,7 +1016,8 @@ def joint_observation_space(observation_space: spaces.Box, n_agents: int) -> spa
 
 
 class MultiAgentVecMonitor(VecEnvWrapper):
-    """Per-game episode records of a :class:`MultiAgentVecEnv`, optionally written as a monitor CSV.
+    """Per-game episode records of a :class:`GroupedVecEnv` (a :class:`MultiAgentVecEnv`, a native vec env),
+    optionally written as a monitor CSV.
 
     The multi-agent vec env puts one ``episode`` dict (team return ``r``, game steps ``l``, task metrics) into the info
     of a game's first slot when the game ends; this wrapper keeps the last 10,000 of them in :attr:`episodes` and

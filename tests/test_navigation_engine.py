@@ -13,7 +13,7 @@ from gymnasium.utils import seeding
 from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.common.vec_env import MultiAgentVecEnv
+from sb3_saeir.common.vec_env import GroupedVecEnv, MultiAgentVecEnv
 from sb3_saeir.envs import get_native_vec_env_factory, make_task
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from sb3_saeir.envs.navigation_core import NavigationCore
@@ -340,6 +340,31 @@ def test_native_vec_env_api():
     assert [slot for slot, info in enumerate(infos) if "episode" in info] == [0, 3]
     assert {"coverage_rate", "coverage_over_steps", "collision_steps", "success", "reach_events"} <= set(infos[0]["episode"])
     env.close()
+
+
+@pytest.mark.parametrize("backend", ["native", "supersuit"])
+def test_both_backends_are_grouped_vec_envs_stepping_by_group(backend):
+    """The native env and the SuperSuit-backed one implement GroupedVecEnv (the native one without subclassing
+    MultiAgentVecEnv); stepped as their one sampling group, they give the lockstep steps."""
+    envs = [make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, max_cycles=3, backend=backend) for _ in range(2)]
+    assert all(isinstance(env, GroupedVecEnv) for env in envs)
+    assert MultiAgentVecEnv not in type(envs[0]).__mro__[1:]
+    lockstep, grouped = envs
+    np.testing.assert_array_equal(lockstep.reset(), grouped.reset())
+    assert grouped.sampling_groups == [range(6)]
+    actions = np.random.default_rng(0).integers(0, 5, size=(4, 6))
+    for t in range(4):
+        obs, rewards, dones, infos = lockstep.step(actions[t])
+        grouped.step_group_async(0, actions[t])
+        group, group_obs, group_dones = grouped.step_any_group_wait()
+        assert group == 0 and grouped.n_staged_steps == 1
+        np.testing.assert_array_equal(group_obs, obs)
+        np.testing.assert_array_equal(group_dones, dones)
+        got = grouped.step_wait()
+        np.testing.assert_array_equal(got[1], rewards)
+        assert [set(info) for info in got[3]] == [set(info) for info in infos]
+    for env in envs:
+        env.close()
 
 
 def test_native_vec_env_trains_with_ppo():

@@ -399,13 +399,18 @@ class GameWorkerPool:
     def step_async(self, actions: np.ndarray, workers: Sequence[int] | None = None) -> None:
         """Write the actions of the workers' slots into shared memory and tell those workers to step.
 
-        :param actions: ``(n_slots, ...)`` actions of every slot (only the given workers' rows are read)
+        :param actions: the actions of the workers' slots, ``(rows of the workers, ...)`` in ``workers`` order:
+            ``(n_slots, ...)`` for all workers
         :param workers: the workers to step (default: all)
         """
         workers = range(self.n_workers) if workers is None else workers
+        start = 0
         for worker in workers:
             rows = self.slots_of_worker[worker]
-            self.slots.actions[rows.start : rows.stop] = actions[rows.start : rows.stop]
+            self.slots.actions[rows.start : rows.stop] = actions[start : start + len(rows)]
+            start += len(rows)
+        if start != len(actions):
+            raise ValueError(f"step_async got actions for {len(actions)} slots; workers {list(workers)} have {start}.")
         self._send(workers, ("step", None))
 
     def step_wait(self, workers: Sequence[int] | None = None) -> list[dict]:
@@ -484,7 +489,8 @@ class GameWorkerVecEnv:
         return self.pool.slots.obs.copy(), infos
 
     def step_async(self, actions: np.ndarray, workers: Sequence[int] | None = None) -> None:
-        """Step the games of ``workers`` (default: all) with their rows of ``actions`` ``(n_slots, ...)``."""
+        """Step the games of ``workers`` (default: all) with ``actions``, the rows of their slots in ``workers``
+        order (``(n_slots, ...)`` for all workers)."""
         self.pool.step_async(np.asarray(actions), workers)
 
     def step_wait(

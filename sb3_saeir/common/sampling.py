@@ -14,19 +14,33 @@ stream differs from the synchronous loop's. Each group draws from its own torch 
 generator at the start of the rollout, so the order in which the groups come back does not matter: the same seed gives
 the same run twice (tested with workers whose steps take random wall time). After the rollout the global generator
 continues from where the group seeds were drawn.
+
+**The collector.** :class:`RolloutCollector` holds both loops that fill a rollout buffer: the synchronous one (the
+policy acts for every slot, every game steps) and the double-buffered one; ``MAPPO.collect_rollouts`` (and
+``SAEIR_PPO``'s) calls it for the steps, then computes the bootstrap values, the intrinsic rewards and GAE. The loops
+live here, beside :func:`double_buffering_obstacle` and the per-group random streams, and step the env only through
+the grouped stepping of :class:`~sb3_saeir.common.vec_env.GroupedVecEnv` (which the worker pool,
+:mod:`sb3_saeir.common.game_workers`, serves): the algorithm keeps only its maths.
 """
 
 from __future__ import annotations
 
+import collections
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.utils import obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.type_aliases import MultiAgentStates
+from sb3_saeir.common.vec_env import GroupedVecEnv
 
 
 def base_multiagent_env(env: VecEnv) -> tuple[Any, list[VecEnvWrapper]]:
@@ -43,7 +57,7 @@ def games_in_workers(env: VecEnv | None) -> bool:
     if env is None:
         return False
     base, _ = base_multiagent_env(env)
-    return len(getattr(base, "sampling_groups", ())) >= 2
+    return isinstance(base, GroupedVecEnv) and len(base.sampling_groups) >= 2
 
 
 def double_buffering_obstacle(env: VecEnv | None) -> str | None:
@@ -60,7 +74,7 @@ def double_buffering_obstacle(env: VecEnv | None) -> str | None:
     if env is None:
         return "there is no env"
     base, wrappers = base_multiagent_env(env)
-    if not hasattr(base, "sampling_groups"):
+    if not isinstance(base, GroupedVecEnv):
         return f"{type(base).__name__} has no groups of games that step on their own (make_multiagent_vec_env does)"
     if len(base.sampling_groups) < 2:
         return "its games run in one process (make_multiagent_vec_env(..., num_cpus=2) or more runs them in workers)"
@@ -152,3 +166,278 @@ def join_steps(parts: list[GroupStep]) -> GroupStep:
         log_probs=th.cat([part.log_probs for part in parts]),
         new_states=join_states([part.new_states for part in parts]),
     )
+
+
+def use_double_buffering(algo_name: str, setting: bool | str, env: VecEnv) -> bool:
+    """Whether a rollout of ``env`` is sampled double-buffered.
+
+    :param algo_name: the algorithm, for the message
+    :param setting: the algorithm's ``double_buffered``: ``True``, ``False`` or ``"auto"`` (when the env allows it)
+    :param env: the training env
+    :raises ValueError: with ``True``, when the env does not allow it (:func:`double_buffering_obstacle` says why)
+    """
+    if setting is False:
+        return False
+    obstacle = double_buffering_obstacle(env)
+    if obstacle is not None and setting is True:
+        raise ValueError(f"{algo_name}(double_buffered=True) cannot sample this env: {obstacle}.")
+    return obstacle is None
+
+
+class RolloutOwner(Protocol):
+    """What :class:`RolloutCollector` reads and moves on the algorithm (SB3's ``OnPolicyAlgorithm`` attributes):
+    the agent-step counter, where the env was left (observations, episode starts, recurrent states) and the episode
+    info buffer of the ``rollout/`` logs."""
+
+    num_timesteps: int
+    _last_obs: np.ndarray | dict[str, np.ndarray] | None
+    _last_episode_starts: np.ndarray | None
+    _last_states: MultiAgentStates | None
+
+    def _update_info_buffer(self, infos: list[dict[str, Any]], dones: np.ndarray | None = None) -> None: ...
+
+
+class RolloutCollector:
+    """The steps of one rollout, synchronous or double-buffered (module docstring), stored in the rollout buffer.
+
+    Each step of all slots is stored, and the callbacks' ``on_step`` called, as SB3's ``collect_rollouts`` does: the
+    callbacks' ``locals`` hold ``self`` (the algorithm), ``env``, ``callback``, ``rollout_buffer``,
+    ``n_rollout_steps``, ``n_steps``, ``step`` (the policy's :class:`GroupStep`), ``new_obs``, ``rewards``, ``dones``
+    and ``infos``. The algorithm's ``num_timesteps`` counts agent-steps before each ``on_step``; its ``_last_obs``,
+    ``_last_episode_starts`` and ``_last_states`` follow the stored steps (``_last_obs`` is ``None`` after a
+    double-buffered rollout that was stopped or failed: the next ``learn`` resets the env).
+
+    :param policy: the policy, fixed during the rollout
+    :param action_space: one agent's action space (``Box`` actions are clipped before the env gets them)
+    :param gamma: the discount of the bootstrap added at time limits
+    :param device: the policy's device
+    """
+
+    def __init__(
+        self, policy: MultiAgentActorCriticPolicy, action_space: spaces.Space, gamma: float, device: th.device
+    ) -> None:
+        self.policy = policy
+        self.action_space = action_space
+        self.gamma = gamma
+        self.device = device
+
+    def collect(
+        self,
+        owner: RolloutOwner,
+        env: VecEnv,
+        callback: BaseCallback,
+        rollout_buffer: GroupedRecurrentRolloutBuffer,
+        n_rollout_steps: int,
+        double_buffered: bool,
+    ) -> bool:
+        """Store ``n_rollout_steps`` steps of every game in ``rollout_buffer``, from where ``owner`` left the env.
+
+        With the games in worker processes, the policy's small forward passes run on one torch thread: more threads
+        would spin on the cores the engines need (the update, with the workers idle, keeps the process's threads).
+
+        :param owner: the algorithm (its counters, :class:`RolloutOwner`)
+        :param env: the training env
+        :param callback: the callbacks (``on_step`` after each step of all slots)
+        :param rollout_buffer: the buffer, reset
+        :param n_rollout_steps: steps per game
+        :param double_buffered: the double-buffered loop (:func:`use_double_buffering`), else the synchronous one
+        :return: ``False`` when a callback stopped training
+        """
+        threads = th.get_num_threads()
+        if games_in_workers(env):
+            th.set_num_threads(1)
+        try:
+            if double_buffered:
+                return self._collect_double_buffered(owner, env, callback, rollout_buffer, n_rollout_steps)
+            return self._collect_synchronous(owner, env, callback, rollout_buffer, n_rollout_steps)
+        finally:
+            th.set_num_threads(threads)
+
+    def _collect_synchronous(
+        self,
+        owner: RolloutOwner,
+        env: VecEnv,
+        callback: BaseCallback,
+        rollout_buffer: GroupedRecurrentRolloutBuffer,
+        n_rollout_steps: int,
+    ) -> bool:
+        """The synchronous loop: the policy acts for every slot, then every game steps."""
+        n_steps = 0
+        while n_steps < n_rollout_steps:
+            step = self._act(owner._last_obs, owner._last_states, owner._last_episode_starts)  # type: ignore[arg-type]
+            new_obs, rewards, dones, infos = env.step(self._env_actions(step.actions))
+            owner.num_timesteps += env.num_envs
+            callback.update_locals(
+                _step_locals(
+                    owner, env, callback, rollout_buffer, n_rollout_steps, n_steps, step, new_obs, rewards, dones, infos
+                )
+            )
+            if not callback.on_step():
+                return False
+            owner._update_info_buffer(infos, dones)
+            n_steps += 1
+            self._store_step(owner, rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
+        return True
+
+    def _collect_double_buffered(
+        self,
+        owner: RolloutOwner,
+        env: VecEnv,
+        callback: BaseCallback,
+        rollout_buffer: GroupedRecurrentRolloutBuffer,
+        n_rollout_steps: int,
+    ) -> bool:
+        """The double-buffered loop: each group of games steps on its own; a step of all slots is stored (and the
+        callbacks called) once every group has made it."""
+        base, _ = base_multiagent_env(env)
+        assert isinstance(base, GroupedVecEnv)
+        groups = base.sampling_groups
+        streams = GroupRandomStreams(len(groups), self.device)
+        in_buffer: list[collections.deque[GroupStep]] = [collections.deque() for _ in groups]  # sent, not yet stored
+        sent = [0] * len(groups)
+
+        def act_and_send(group: int, obs: np.ndarray, starts: np.ndarray, states: MultiAgentStates) -> None:
+            step = streams.run(group, lambda: self._act(obs, states, starts))
+            base.step_group_async(group, self._env_actions(step.actions))  # the group's rows only
+            in_buffer[group].append(step)
+            sent[group] += 1
+
+        assert owner._last_obs is not None and owner._last_states is not None
+        assert owner._last_episode_starts is not None
+        last_obs, last_starts = np.asarray(owner._last_obs), owner._last_episode_starts
+        for group, slots in enumerate(groups):
+            rows = slice(slots.start, slots.stop)
+            act_and_send(
+                group, last_obs[rows], last_starts[rows], slice_states(owner._last_states, slots, self.policy.n_agents)
+            )
+        n_steps = 0
+        try:
+            while n_steps < n_rollout_steps:
+                if base.n_staged_steps == 0:
+                    group, group_obs, group_dones = base.step_any_group_wait()
+                    if sent[group] < n_rollout_steps:
+                        act_and_send(group, group_obs, group_dones, in_buffer[group][-1].new_states)
+                    continue
+                new_obs, rewards, dones, infos = env.step_wait()  # the oldest step every group has made
+                step = join_steps([queue.popleft() for queue in in_buffer])
+                owner.num_timesteps += env.num_envs
+                callback.update_locals(
+                    _step_locals(
+                        owner, env, callback, rollout_buffer, n_rollout_steps, n_steps, step, new_obs, rewards, dones, infos
+                    )
+                )
+                if not callback.on_step():
+                    base.drain_groups()
+                    owner._last_obs = None  # the groups are out of step: the next learn() resets the env
+                    return False
+                owner._update_info_buffer(infos, dones)
+                n_steps += 1
+                self._store_step(owner, rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
+        except BaseException:
+            base.drain_groups()
+            owner._last_obs = None
+            raise
+        finally:
+            streams.finish()
+        return True
+
+    def _act(self, obs: np.ndarray, states: MultiAgentStates, episode_starts: np.ndarray) -> GroupStep:
+        """The policy's step for the slots of ``obs`` (all slots, or one group of games)."""
+        with th.no_grad():
+            obs_tensor = obs_as_tensor(obs, self.device)  # type: ignore[arg-type]
+            starts = th.as_tensor(episode_starts, dtype=th.float32, device=self.device)
+            actions, values, log_probs, new_states = self.policy(obs_tensor, states, starts)
+        return GroupStep(obs, episode_starts, states, actions.cpu().numpy(), values, log_probs, new_states)
+
+    def _env_actions(self, actions: np.ndarray) -> np.ndarray:
+        """The actions as sent to the env (clipped to a ``Box`` action space)."""
+        if isinstance(self.action_space, spaces.Box):
+            return np.clip(actions, self.action_space.low, self.action_space.high)
+        return actions
+
+    def _store_step(
+        self,
+        owner: RolloutOwner,
+        rollout_buffer: GroupedRecurrentRolloutBuffer,
+        step: GroupStep,
+        rewards: np.ndarray,
+        dones: np.ndarray,
+        infos: list[dict],
+        new_obs: np.ndarray,
+    ) -> None:
+        """Add one step of all slots to the buffer and move the owner's ``_last_obs``, ``_last_episode_starts`` and
+        ``_last_states``."""
+        # (E,) -> (E, 1) for Discrete actions: the buffer's action layout
+        actions = step.actions.reshape(-1, 1) if isinstance(self.action_space, spaces.Discrete) else step.actions
+        # (E,) -> (E, K): each critic scale gets the env reward plus its own bootstrap where a game was truncated
+        scale_rewards = np.repeat(np.asarray(rewards, dtype=np.float32)[:, None], self.policy.n_scales, axis=1)
+        scale_rewards += self.truncation_bootstrap(infos, dones, step.new_states)
+        rollout_buffer.add(
+            step.obs,  # type: ignore[arg-type]
+            actions,
+            scale_rewards,
+            step.episode_starts,
+            step.values,
+            step.log_probs,
+            actor_states=step.states.actor,
+            critic_states=step.states.critic,
+        )
+        owner._last_obs = new_obs
+        owner._last_episode_starts = dones
+        owner._last_states = step.new_states
+
+    def truncation_bootstrap(self, infos: list[dict], dones: np.ndarray, states: MultiAgentStates) -> np.ndarray:
+        """``gamma * V_K(final observation)`` per scale for the slots of games that hit a time limit
+        (``TimeLimit.truncated``, only set when the env is asked to), zero elsewhere; ``(n_envs, K)``.
+
+        The critics run on the games' final observations with their states after this step.
+
+        :param infos: the step's infos (``terminal_observation`` of finished games)
+        :param dones: ``(n_envs,)`` the step's dones
+        :param states: the recurrent states after the step
+        """
+        bootstrap = np.zeros((len(infos), self.policy.n_scales), dtype=np.float32)
+        truncated_slots = [i for i, info in enumerate(infos) if dones[i] and info.get("TimeLimit.truncated", False)]
+        if not truncated_slots:
+            return bootstrap
+        n_agents = self.policy.n_agents
+        games = sorted({slot // n_agents for slot in truncated_slots})
+        slots = [g * n_agents + a for g in games for a in range(n_agents)]
+        terminal_obs = np.stack([infos[slot]["terminal_observation"] for slot in slots])  # (len(games) * N, d)
+        with th.no_grad():
+            obs = th.as_tensor(terminal_obs, dtype=th.float32, device=self.device)
+            game_states = MultiAgentStates(actor=states.actor[slots], critic=states.critic[:, games])  # critic (K, g, N, H)
+            normalized = self.policy.predict_values(obs, game_states)  # (len(games) * N, K)
+            values = self.policy.denormalize_values(normalized).cpu().numpy()
+        bootstrap[slots] = self.gamma * values
+        return bootstrap
+
+
+def _step_locals(
+    owner: RolloutOwner,
+    env: VecEnv,
+    callback: BaseCallback,
+    rollout_buffer: GroupedRecurrentRolloutBuffer,
+    n_rollout_steps: int,
+    n_steps: int,
+    step: GroupStep,
+    new_obs: Any,
+    rewards: np.ndarray,
+    dones: np.ndarray,
+    infos: list[dict],
+) -> dict[str, Any]:
+    """The callbacks' ``locals`` at a step, with the names SB3's ``collect_rollouts`` gives them (``self``: the
+    algorithm)."""
+    return {
+        "self": owner,
+        "env": env,
+        "callback": callback,
+        "rollout_buffer": rollout_buffer,
+        "n_rollout_steps": n_rollout_steps,
+        "n_steps": n_steps,
+        "step": step,
+        "new_obs": new_obs,
+        "rewards": rewards,
+        "dones": dones,
+        "infos": infos,
+    }

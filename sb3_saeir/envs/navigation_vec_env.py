@@ -13,16 +13,14 @@ game's end). The task is described in ``docs/tasks.md``.
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from sb3_saeir.common.utils import check_bool
-from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv
+from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, GroupedVecEnv, MultiAgentVecEnv, RawStep
 from sb3_saeir.common.vec_env import check_finite as check_finite_values
 from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
@@ -110,11 +108,12 @@ class NavigationGame:
         return self._vec_env.core.render(self.game)
 
 
-class NavigationVecEnv(MultiAgentVecEnv):
-    """SB3 ``VecEnv`` of ``n_games`` sparse Cooperative Navigation games, one slot per agent, stepped in NumPy.
+class NavigationVecEnv(GroupedVecEnv):
+    """SB3 ``VecEnv`` of ``n_games`` sparse Cooperative Navigation games, one slot per agent, stepped in NumPy (a
+    :class:`~sb3_saeir.common.vec_env.GroupedVecEnv`, as :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`).
 
     Build it with :func:`~sb3_saeir.make_multiagent_vec_env` (the default backend of the navigation tasks) or
-    directly. All games run in this process (there are no worker processes: ``num_cpus`` is 0).
+    directly. All games run in this process (there are no worker processes: ``num_cpus`` is 0; one sampling group).
 
     :param n_games: number of games G; the vec env has ``G * N`` slots
     :param N: agents per game (= landmarks)
@@ -158,52 +157,37 @@ class NavigationVecEnv(MultiAgentVecEnv):
             cover_radius=cover_radius,
             collision_penalty=collision_penalty,
         )
-        self.n_games = int(n_games)
-        self.n_agents = self.core.N
-        self.possible_agents: list[str] = [f"agent_{i}" for i in range(self.n_agents)]
-        self.num_cpus = 0
-        self.mark_truncation = mark_truncation
-        self.check_finite = check_finite
-        self._probe_render_mode = render_mode
-        self.state_space = gym.spaces.Box(-np.inf, np.inf, (self.n_agents * self.core.obs_dim,), dtype=np.float32)
+        n_agents = self.core.N
+        self.state_space = gym.spaces.Box(-np.inf, np.inf, (n_agents * self.core.obs_dim,), dtype=np.float32)
+        observation_space, action_space = navigation_spaces(n_agents, self.core.continuous_actions)
+        super().__init__(
+            n_games,
+            [f"agent_{i}" for i in range(n_agents)],
+            observation_space,
+            action_space,
+            mark_truncation=mark_truncation,
+            check_finite=check_finite,
+            render_mode=render_mode,
+            metadata=METADATA,
+        )
         self.games = [NavigationGame(self, g) for g in range(self.n_games)]
-        observation_space, action_space = navigation_spaces(self.n_agents, self.core.continuous_actions)
-        VecEnv.__init__(self, self.n_games * self.n_agents, observation_space, action_space)
-        self.metadata = dict(METADATA)
-        self._game_seed: int | None = None
         self._actions: np.ndarray | None = None
-        self._init_episode_records()
         self.core.reset_games()
 
-    # ------------------------------------------------------------------ seeding / reset
-    def reset(self, seed: int | None = None, options: dict | None = None) -> VecEnvObs:
-        """Reset every game.
-
-        :param seed: optional base seed (game ``g`` gets ``seed + g``); same as calling :meth:`seed` first
-        :param options: ignored (the task has no reset options)
-        :return: the first observations, ``(n_games * n_agents, obs_dim)``
-        """
+    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    def _reset_games(self, seed: int | None, options: dict | None) -> tuple[np.ndarray, list[dict[str, Any]]]:
+        """Reset every game (``options`` are ignored: the task has none)."""
         if seed is not None:
-            self.seed(seed)
-        if self._game_seed is not None:
-            self.core.seed([self._game_seed + g for g in range(self.n_games)])
+            self.core.seed([seed + g for g in range(self.n_games)])
         self.core.reset_games()
-        self.reset_infos = [{} for _ in range(self.num_envs)]
-        self._game_seed = None
-        self._reset_seeds()
-        self._reset_options()
-        self._episode_returns[:] = 0.0
-        self._episode_lengths[:] = 0
+        self._actions = None
         obs = self.core.observations().reshape(self.num_envs, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
-        if self.check_finite:
-            check_finite_values(self._env_name(), obs, None, self.n_agents, self.possible_agents, self._episode_lengths)
-        return obs
+        return obs, [{} for _ in range(self.num_envs)]
 
-    # ------------------------------------------------------------------ stepping
-    def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions)
+    def _step_games_async(self, actions: np.ndarray, group: int | None) -> None:
+        self._actions = np.asarray(actions)  # one group: every slot
 
-    def step_wait(self) -> VecEnvStepReturn:
+    def _step_games_wait(self, group: int | None, episode_steps: np.ndarray) -> RawStep:
         if self._actions is None:
             raise RuntimeError("step_wait() called without step_async().")
         G, N = self.n_games, self.n_agents
@@ -213,25 +197,32 @@ class NavigationVecEnv(MultiAgentVecEnv):
         result = self.core.step(actions)
         obs: np.ndarray = result.observations.reshape(G * N, -1)  # (G, N, obs_dim) -> (G * N, obs_dim)
         rewards = np.repeat(result.rewards.astype(np.float32), N)  # (G,) -> (G * N,)
-        dones = np.repeat(result.truncated, N)  # (G,) -> (G * N,)
-        if self.check_finite:  # the step of each game's episode that produced these values: the next one
-            check_finite_values(self._env_name(), obs, rewards, N, self.possible_agents, self._episode_lengths + 1)
+        truncations = np.repeat(result.truncated, N)  # (G,) -> (G * N,)
+        if self.check_finite:  # the games' last observations, before the finished ones are reset
+            check_finite_values(self._env_name(), obs, rewards, N, self.possible_agents, episode_steps)
         infos: list[dict[str, Any]] = [{} for _ in range(G * N)]
         finished = np.flatnonzero(result.truncated)
-        terminal_obs = obs.copy() if len(finished) else obs
-        for game in finished:
-            metrics = self.core.episode_metrics(int(game))
-            for slot in range(game * N, (game + 1) * N):
-                infos[slot]["terminal_observation"] = terminal_obs[slot]
-                infos[slot][EPISODE_METRICS_KEY] = dict(metrics)
-                if self.mark_truncation:
-                    infos[slot]["TimeLimit.truncated"] = True
-        self._record_episodes(rewards, dones, infos)  # the per-game episode records, as for SuperSuit-backed games
         if len(finished):
+            terminal_obs = obs.copy()
+            for game in finished:
+                metrics = self.core.episode_metrics(int(game))
+                for slot in range(game * N, (game + 1) * N):
+                    infos[slot]["terminal_observation"] = terminal_obs[slot]
+                    infos[slot][EPISODE_METRICS_KEY] = dict(metrics)
             self.core.reset_games(finished)
             # (G, N, obs_dim) -> (G * N, obs_dim): the first observations of the new episodes replace the last ones
             obs = self.core.observations().reshape(G * N, -1)
-        return obs, rewards, dones, infos
+        return obs, rewards, np.zeros(G * N, dtype=bool), truncations, infos
+
+    def _abandon_steps(self, groups: list[int]) -> None:
+        self._actions = None  # the games step in step_wait: nothing has run yet
+
+    def _game_objects(self) -> list[NavigationGame]:
+        return self.games
+
+    def _render_game_zero(self) -> np.ndarray | None:
+        """The frame of game 0, drawn by the engine (``render`` has checked the render mode)."""
+        return self.core.render(0)
 
     # ------------------------------------------------------------------ resume state
     def get_resume_state(self) -> dict[str, Any]:
@@ -244,15 +235,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
 
         :return: a dict for :meth:`set_resume_state`
         """
-        return {
-            "core": self.core.get_resume_state(),
-            "episode_returns": self._episode_returns.copy(),
-            "episode_lengths": self._episode_lengths.copy(),
-            "episode_count": self.episode_count,
-            "game_seed": self._game_seed,
-            "seeds": list(self._seeds),
-            "options": copy.deepcopy(self._options),
-        }
+        return {"core": self.core.get_resume_state(), **self._records_state()}
 
     def set_resume_state(self, state: dict[str, Any]) -> None:
         """Put the env back in the state returned by :meth:`get_resume_state` of an env made with the same settings:
@@ -263,12 +246,7 @@ class NavigationVecEnv(MultiAgentVecEnv):
             reading or action type
         """
         self.core.set_resume_state(state["core"])
-        self._episode_returns = np.array(state["episode_returns"], dtype=np.float64, copy=True)
-        self._episode_lengths = np.array(state["episode_lengths"], dtype=np.int64, copy=True)
-        self.episode_count = int(state["episode_count"])
-        self._game_seed = state["game_seed"]
-        self._seeds = list(state["seeds"])
-        self._options = copy.deepcopy(state["options"])
+        self._set_records_state(state)
         self._actions = None
 
     # ------------------------------------------------------------------ SB3 VecEnv API
@@ -279,38 +257,6 @@ class NavigationVecEnv(MultiAgentVecEnv):
         """Picture of game 0; ``None`` for the other slots."""
         return [self.core.render(0)] + [None] * (self.num_envs - 1)
 
-    def _render_game_zero(self) -> np.ndarray | None:
-        """The frame of game 0, drawn by the engine (``render`` has checked the render mode)."""
-        return self.core.render(0)
-
-    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        """Attribute of the game each slot belongs to."""
-        slots = list(self._get_indices(indices))
-        if attr_name == "render_mode":
-            return [self._probe_render_mode] * len(slots)
-        if attr_name in ("n_agents", "n_games"):
-            return [getattr(self, attr_name)] * len(slots)
-        return [getattr(self.games[self.game_of(i)], attr_name) for i in slots]
-
-    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        """Set an attribute on the game of each slot (``max_cycles``, ``cover_radius`` and ``collision_penalty`` change
-        that game's dynamics)."""
-        for g in sorted({self.game_of(i) for i in self._get_indices(indices)}):
-            setattr(self.games[g], attr_name, value)
-
-    def env_method(
-        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
-    ) -> list[Any]:
-        """Call a method of the game each slot belongs to (once per slot): ``state``, ``positions``, ``render``, ..."""
-        return [
-            getattr(self.games[self.game_of(i)], method_name)(*method_args, **method_kwargs)
-            for i in self._get_indices(indices)
-        ]
-
-    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
-        """Games are not gymnasium envs: all ``False``."""
-        return [False] * len(list(self._get_indices(indices)))
-
     def get_state(self) -> np.ndarray:
         """Global state of every game, ``(n_games, N * obs_dim)``."""
         return self.core.observations().reshape(self.n_games, -1)  # (G, N, obs_dim) -> (G, N * obs_dim)
@@ -320,3 +266,9 @@ class NavigationVecEnv(MultiAgentVecEnv):
             f"NavigationVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
             f"world={self.core.world!r}, reward={self.core.reward!r})"
         )
+
+
+# Compatibility: code written before GroupedVecEnv checks ``isinstance(env, MultiAgentVecEnv)`` or annotates
+# make_multiagent_vec_env's result as a MultiAgentVecEnv, which this class was a subclass of; it is a virtual one now
+# (an ABC registration: it shares GroupedVecEnv with MultiAgentVecEnv, not MultiAgentVecEnv's SuperSuit machinery).
+MultiAgentVecEnv.register(NavigationVecEnv)

@@ -6,7 +6,6 @@ chunked recurrent PPO update); :class:`~sb3_saeir.SAEIR_PPO` is MAPPO with SAEIR
 
 from __future__ import annotations
 
-import collections
 import io
 import os
 import pathlib
@@ -32,15 +31,7 @@ from sb3_saeir.common.checks import valid_batch_sizes
 from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
 from sb3_saeir.common.registry import INTRINSIC_REWARDS
-from sb3_saeir.common.sampling import (
-    GroupRandomStreams,
-    GroupStep,
-    base_multiagent_env,
-    double_buffering_obstacle,
-    games_in_workers,
-    join_steps,
-    slice_states,
-)
+from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
 from sb3_saeir.common.type_aliases import GroupedRecurrentSamples
 from sb3_saeir.common.utils import check_bool, check_seed
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback  # importing sb3_saeir.intrinsic registers its bonuses
@@ -334,27 +325,17 @@ class MAPPO(OnPolicyAlgorithm):
         """Collect ``n_rollout_steps`` steps of every game (GRU states and per-scale values stored), then the
         bootstrap values, the intrinsic rewards and one GAE pass, in that order.
 
-        With ``double_buffered`` on, the worker processes' groups of games step on their own while the policy acts
-        for the group that came back first (:mod:`sb3_saeir.common.sampling`); the buffer is filled as by the
-        synchronous loop."""
+        The steps come from :class:`~sb3_saeir.common.sampling.RolloutCollector`: with ``double_buffered`` on, the
+        worker processes' groups of games step on their own while the policy acts for the group that came back first;
+        the buffer is filled as by the synchronous loop."""
         assert isinstance(rollout_buffer, GroupedRecurrentRolloutBuffer)
         assert self._last_obs is not None and self._last_states is not None
         self.policy.set_training_mode(False)
         rollout_buffer.reset()
         callback.on_rollout_start()
-        # with the games in worker processes, the policy's small forward passes run on one torch thread: more threads
-        # would spin on the cores the engines need (the update, with the workers idle, keeps the process's threads)
-        threads = th.get_num_threads()
-        if games_in_workers(env):
-            th.set_num_threads(1)
-        try:
-            if self._use_double_buffering(env):
-                collected = self._collect_steps_double_buffered(env, callback, rollout_buffer, n_rollout_steps)
-            else:
-                collected = self._collect_steps(env, callback, rollout_buffer, n_rollout_steps)
-        finally:
-            th.set_num_threads(threads)
-        if not collected:
+        collector = RolloutCollector(self.policy, self.action_space, self.gamma, self.device)
+        double_buffered = use_double_buffering(type(self).__name__, self.double_buffered, env)
+        if not collector.collect(self, env, callback, rollout_buffer, n_rollout_steps, double_buffered):
             return False
         new_obs, dones = self._last_obs, self._last_episode_starts
         assert new_obs is not None and dones is not None
@@ -369,148 +350,6 @@ class MAPPO(OnPolicyAlgorithm):
         callback.update_locals(locals())
         callback.on_rollout_end()
         return True
-
-    def _act(self, obs: np.ndarray, states: MultiAgentStates, episode_starts: np.ndarray) -> GroupStep:
-        """The policy's step for the slots of ``obs`` (all slots, or one group of games)."""
-        with th.no_grad():
-            obs_tensor = obs_as_tensor(obs, self.device)  # type: ignore[arg-type]
-            starts = th.as_tensor(episode_starts, dtype=th.float32, device=self.device)
-            actions, values, log_probs, new_states = self.policy(obs_tensor, states, starts)
-        return GroupStep(obs, episode_starts, states, actions.cpu().numpy(), values, log_probs, new_states)
-
-    def _env_actions(self, actions: np.ndarray) -> np.ndarray:
-        """The actions as sent to the env (clipped to a ``Box`` action space)."""
-        if isinstance(self.action_space, spaces.Box):
-            return np.clip(actions, self.action_space.low, self.action_space.high)
-        return actions
-
-    def _store_step(
-        self,
-        rollout_buffer: GroupedRecurrentRolloutBuffer,
-        step: GroupStep,
-        rewards: np.ndarray,
-        dones: np.ndarray,
-        infos: list[dict],
-        new_obs: np.ndarray,
-    ) -> None:
-        """Add one step of all slots to the buffer and move ``_last_obs``, ``_last_episode_starts``, ``_last_states``."""
-        actions = step.actions.reshape(-1, 1) if isinstance(self.action_space, spaces.Discrete) else step.actions
-        # (E,) -> (E, K): each critic scale gets the env reward plus its own bootstrap where a game was truncated
-        scale_rewards = np.repeat(np.asarray(rewards, dtype=np.float32)[:, None], self.policy.n_scales, axis=1)
-        scale_rewards += self._truncation_bootstrap(infos, dones, step.new_states)
-        rollout_buffer.add(
-            step.obs,  # type: ignore[arg-type]
-            actions,
-            scale_rewards,
-            step.episode_starts,
-            step.values,
-            step.log_probs,
-            actor_states=step.states.actor,
-            critic_states=step.states.critic,
-        )
-        self._last_obs = new_obs  # type: ignore[assignment]
-        self._last_episode_starts = dones
-        self._last_states = step.new_states
-
-    def _collect_steps(
-        self, env: VecEnv, callback: BaseCallback, rollout_buffer: GroupedRecurrentRolloutBuffer, n_rollout_steps: int
-    ) -> bool:
-        """The synchronous loop: the policy acts for every slot, then every game steps."""
-        n_steps = 0
-        while n_steps < n_rollout_steps:
-            step = self._act(self._last_obs, self._last_states, self._last_episode_starts)  # type: ignore[arg-type]
-            new_obs, rewards, dones, infos = env.step(self._env_actions(step.actions))
-            self.num_timesteps += env.num_envs
-            callback.update_locals(locals())
-            if not callback.on_step():
-                return False
-            self._update_info_buffer(infos, dones)
-            n_steps += 1
-            self._store_step(rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
-        return True
-
-    def _use_double_buffering(self, env: VecEnv) -> bool:
-        """Whether this rollout is sampled double-buffered (``double_buffered``; ``"auto"``: when the env allows)."""
-        setting = self.double_buffered
-        if setting is False:
-            return False
-        obstacle = double_buffering_obstacle(env)
-        if obstacle is not None and setting is True:
-            raise ValueError(f"{type(self).__name__}(double_buffered=True) cannot sample this env: {obstacle}.")
-        return obstacle is None
-
-    def _collect_steps_double_buffered(
-        self, env: VecEnv, callback: BaseCallback, rollout_buffer: GroupedRecurrentRolloutBuffer, n_rollout_steps: int
-    ) -> bool:
-        """The double-buffered loop: each group of games steps on its own; a step of all slots is stored (and the
-        callbacks called) once every group has made it (:mod:`sb3_saeir.common.sampling`)."""
-        base, _ = base_multiagent_env(env)
-        groups = base.sampling_groups
-        n_agents = self.policy.n_agents
-        streams = GroupRandomStreams(len(groups), self.device)
-        in_buffer: list[collections.deque[GroupStep]] = [collections.deque() for _ in groups]  # sent, not yet stored
-        sent = [0] * len(groups)
-
-        def act_and_send(group: int, obs: np.ndarray, starts: np.ndarray, states: MultiAgentStates) -> None:
-            step = streams.run(group, lambda: self._act(obs, states, starts))
-            base.step_group_async(group, self._env_actions(step.actions))
-            in_buffer[group].append(step)
-            sent[group] += 1
-
-        assert self._last_obs is not None and self._last_states is not None
-        last_obs = np.asarray(self._last_obs)
-        for group, slots in enumerate(groups):
-            states = slice_states(self._last_states, slots, n_agents)
-            rows = slice(slots.start, slots.stop)
-            act_and_send(group, last_obs[rows], self._last_episode_starts[rows], states)  # type: ignore[index]
-        n_steps = 0
-        try:
-            while n_steps < n_rollout_steps:
-                if base.n_staged_steps == 0:
-                    group, group_obs, group_dones = base.step_any_group_wait()
-                    if sent[group] < n_rollout_steps:
-                        act_and_send(group, group_obs, group_dones, in_buffer[group][-1].new_states)
-                    continue
-                new_obs, rewards, dones, infos = env.step_wait()  # the oldest step every group has made
-                step = join_steps([queue.popleft() for queue in in_buffer])
-                self.num_timesteps += env.num_envs
-                callback.update_locals(locals())
-                if not callback.on_step():
-                    base.drain_groups()
-                    self._last_obs = None  # the groups are out of step: the next learn() resets the env
-                    return False
-                self._update_info_buffer(infos, dones)
-                n_steps += 1
-                self._store_step(rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
-        except BaseException:
-            base.drain_groups()
-            self._last_obs = None
-            raise
-        finally:
-            streams.finish()
-        return True
-
-    def _truncation_bootstrap(self, infos: list[dict], dones: np.ndarray, states: MultiAgentStates) -> np.ndarray:
-        """``gamma * V_K(final observation)`` per scale for the slots of games that hit a time limit
-        (``TimeLimit.truncated``, only set when the env is asked to), zero elsewhere; ``(n_envs, K)``.
-
-        The critics run on the games' final observations with their states after this step.
-        """
-        bootstrap = np.zeros((len(infos), self.policy.n_scales), dtype=np.float32)
-        truncated_slots = [i for i, info in enumerate(infos) if dones[i] and info.get("TimeLimit.truncated", False)]
-        if not truncated_slots:
-            return bootstrap
-        n_agents = self.policy.n_agents
-        games = sorted({slot // n_agents for slot in truncated_slots})
-        slots = [g * n_agents + a for g in games for a in range(n_agents)]
-        terminal_obs = np.stack([infos[slot]["terminal_observation"] for slot in slots])  # (len(games) * N, d)
-        with th.no_grad():
-            obs = th.as_tensor(terminal_obs, dtype=th.float32, device=self.device)
-            game_states = MultiAgentStates(actor=states.actor[slots], critic=states.critic[:, games])  # critic (K, g, N, H)
-            normalized = self.policy.predict_values(obs, game_states)  # (len(games) * N, K)
-            values = self.policy.denormalize_values(normalized).cpu().numpy()
-        bootstrap[slots] = self.gamma * values
-        return bootstrap
 
     # ------------------------------------------------------------------------------------------------ training
     def train(self) -> None:

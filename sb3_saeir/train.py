@@ -43,7 +43,6 @@ from stable_baselines3.common.utils import configure_logger, set_random_seed
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.utils import set_num_threads
-from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import (
     ALGOS,
     CONFIG_KEYS,
@@ -190,7 +189,7 @@ def train(args: argparse.Namespace) -> Path:
         )
         if stored is not None:
             run.check_resumable(n_timesteps)
-        build_experiment(experiment, args, run.make_env(experiment))
+        build_experiment(experiment, args, run)
         run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))
         if stored is not None:
             try:
@@ -227,19 +226,20 @@ def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_t
     print(f"Log folder: {run.folder}")
 
 
-def build_experiment(experiment: Experiment, args: argparse.Namespace, env: MultiAgentVecMonitor) -> None:
-    """Build the model on ``env`` (or load ``--trained-agent`` onto it); a bad setting becomes a
-    :class:`~sb3_saeir.config.ConfigError`.
+def build_experiment(experiment: Experiment, args: argparse.Namespace, run: Run) -> None:
+    """Build the run's training env (:meth:`~sb3_saeir.run.Run.make_env`) and the model on it (or load
+    ``--trained-agent`` onto it); a bad setting becomes a :class:`~sb3_saeir.config.ConfigError`.
 
     :param experiment: the run's experiment
     :param args: the command
-    :param env: the run's training env, monitored
+    :param run: the run
     """
     # -tb, else the config's tensorboard_log (passing None would switch the config's off)
     tensorboard_log = args.tensorboard_log
     if tensorboard_log is None:
         tensorboard_log = experiment.hyperparams.get("tensorboard_log")
     try:
+        env = run.make_env(experiment)
         if args.trained_agent and args.resume is None:
             experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
         else:

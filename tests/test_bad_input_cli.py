@@ -212,7 +212,7 @@ RAW_TRAIN = [
     (["--optimize", "--n-jobs", "0"], "--n-jobs must be >= 1"),
     (["--optimize", "--resume"], "--resume continues one training run; it does not apply to --optimize"),
     (["--resume", "1.5"], "argument --resume: '1.5' is not a whole number"),
-    (["--resume"], "--resume: logs/saeir_ppo/cn-sparse-n3_1 has no cn-sparse-n3/args.yml: it is not a run of this"),
+    (["--resume"], "--resume: logs/saeir_ppo/cn-sparse-n3_1 has no spec.json nor cn-sparse-n3/args.yml: it is not a run"),
 ]
 
 

@@ -42,7 +42,7 @@ def test_main_on_a_benchmark_model(bonus_readings, tmp_path, capsys):
     argv = ["--algos", "sae_only", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "300", "--n-games", "2"]
     argv += ["--eval-freq", "300", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(tmp_path)]
     assert benchmark_main(argv) == 0
-    model = tmp_path / "runs" / "sae_only" / "cn-sparse-n3_s1" / "model.zip"
+    model = tmp_path / "runs" / "sae_only" / "cn-sparse-n3_s1" / "cn-sparse-n3.zip"
     out = tmp_path / "readings.md"
     capsys.readouterr()
     assert bonus_readings.main(["--model", str(model), "--n-games", "2", "--positions", "--out", str(out)]) == 0

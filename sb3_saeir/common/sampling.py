@@ -197,6 +197,25 @@ class RolloutOwner(Protocol):
     def _update_info_buffer(self, infos: list[dict[str, Any]], dones: np.ndarray | None = None) -> None: ...
 
 
+@dataclass
+class Collection:
+    """One rollout being collected: whose counters move, which env steps, who is called back, which buffer fills and
+    for how many steps of every game.
+
+    :param owner: the algorithm (:class:`RolloutOwner`)
+    :param env: the training env
+    :param callback: the callbacks
+    :param rollout_buffer: the buffer, reset
+    :param n_rollout_steps: steps per game
+    """
+
+    owner: RolloutOwner
+    env: VecEnv
+    callback: BaseCallback
+    rollout_buffer: GroupedRecurrentRolloutBuffer
+    n_rollout_steps: int
+
+
 class RolloutCollector:
     """The steps of one rollout, synchronous or double-buffered (module docstring), stored in the rollout buffer.
 
@@ -246,49 +265,59 @@ class RolloutCollector:
         threads = th.get_num_threads()
         if games_in_workers(env):
             th.set_num_threads(1)
+        collection = Collection(owner, env, callback, rollout_buffer, n_rollout_steps)
         try:
             if double_buffered:
-                return self._collect_double_buffered(owner, env, callback, rollout_buffer, n_rollout_steps)
-            return self._collect_synchronous(owner, env, callback, rollout_buffer, n_rollout_steps)
+                return self._collect_double_buffered(collection)
+            return self._collect_synchronous(collection)
         finally:
             th.set_num_threads(threads)
 
-    def _collect_synchronous(
-        self,
-        owner: RolloutOwner,
-        env: VecEnv,
-        callback: BaseCallback,
-        rollout_buffer: GroupedRecurrentRolloutBuffer,
-        n_rollout_steps: int,
-    ) -> bool:
+    def _collect_synchronous(self, collection: Collection) -> bool:
         """The synchronous loop: the policy acts for every slot, then every game steps."""
-        n_steps = 0
-        while n_steps < n_rollout_steps:
+        owner, env = collection.owner, collection.env
+        for n_steps in range(collection.n_rollout_steps):
             step = self._act(owner._last_obs, owner._last_states, owner._last_episode_starts)  # type: ignore[arg-type]
-            new_obs, rewards, dones, infos = env.step(self._env_actions(step.actions))
-            owner.num_timesteps += env.num_envs
-            callback.update_locals(
-                _step_locals(
-                    owner, env, callback, rollout_buffer, n_rollout_steps, n_steps, step, new_obs, rewards, dones, infos
-                )
-            )
-            if not callback.on_step():
+            if not self._take_step(collection, n_steps, step, *env.step(self._env_actions(step.actions))):
                 return False
-            owner._update_info_buffer(infos, dones)
-            n_steps += 1
-            self._store_step(owner, rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
         return True
 
-    def _collect_double_buffered(
+    def _take_step(
         self,
-        owner: RolloutOwner,
-        env: VecEnv,
-        callback: BaseCallback,
-        rollout_buffer: GroupedRecurrentRolloutBuffer,
-        n_rollout_steps: int,
+        collection: Collection,
+        n_steps: int,
+        step: GroupStep,
+        new_obs: Any,
+        rewards: np.ndarray,
+        dones: np.ndarray,
+        infos: list[dict],
     ) -> bool:
+        """A step of all slots made: count it, call the callbacks (``False``: one stopped training), then store it.
+
+        :param collection: the rollout being collected
+        :param n_steps: steps of every game stored before this one
+        :param step: the policy's step for all slots
+        :param new_obs: the env's observations after it
+        :param rewards: its rewards
+        :param dones: its dones
+        :param infos: its infos
+        """
+        owner, callback = collection.owner, collection.callback
+        owner.num_timesteps += collection.env.num_envs
+        # the callbacks' locals, with the names SB3's collect_rollouts gives them (self: the algorithm)
+        step_locals = {"self": owner, "env": collection.env, "callback": callback, "n_steps": n_steps, "step": step}
+        step_locals.update(rollout_buffer=collection.rollout_buffer, n_rollout_steps=collection.n_rollout_steps)
+        callback.update_locals({**step_locals, "new_obs": new_obs, "rewards": rewards, "dones": dones, "infos": infos})
+        if not callback.on_step():
+            return False
+        owner._update_info_buffer(infos, dones)
+        self._store_step(owner, collection.rollout_buffer, step, rewards, dones, infos, new_obs)
+        return True
+
+    def _collect_double_buffered(self, collection: Collection) -> bool:
         """The double-buffered loop: each group of games steps on its own; a step of all slots is stored (and the
         callbacks called) once every group has made it."""
+        owner, env, n_rollout_steps = collection.owner, collection.env, collection.n_rollout_steps
         base, _ = base_multiagent_env(env)
         assert isinstance(base, GroupedVecEnv)
         groups = base.sampling_groups
@@ -318,21 +347,12 @@ class RolloutCollector:
                     if sent[group] < n_rollout_steps:
                         act_and_send(group, group_obs, group_dones, in_buffer[group][-1].new_states)
                     continue
-                new_obs, rewards, dones, infos = env.step_wait()  # the oldest step every group has made
                 step = join_steps([queue.popleft() for queue in in_buffer])
-                owner.num_timesteps += env.num_envs
-                callback.update_locals(
-                    _step_locals(
-                        owner, env, callback, rollout_buffer, n_rollout_steps, n_steps, step, new_obs, rewards, dones, infos
-                    )
-                )
-                if not callback.on_step():
+                if not self._take_step(collection, n_steps, step, *env.step_wait()):  # the oldest step every group made
                     base.drain_groups()
                     owner._last_obs = None  # the groups are out of step: the next learn() resets the env
                     return False
-                owner._update_info_buffer(infos, dones)
                 n_steps += 1
-                self._store_step(owner, rollout_buffer, step, rewards, dones, infos, new_obs)  # type: ignore[arg-type]
         except BaseException:
             base.drain_groups()
             owner._last_obs = None
@@ -411,33 +431,3 @@ class RolloutCollector:
             values = self.policy.denormalize_values(normalized).cpu().numpy()
         bootstrap[slots] = self.gamma * values
         return bootstrap
-
-
-def _step_locals(
-    owner: RolloutOwner,
-    env: VecEnv,
-    callback: BaseCallback,
-    rollout_buffer: GroupedRecurrentRolloutBuffer,
-    n_rollout_steps: int,
-    n_steps: int,
-    step: GroupStep,
-    new_obs: Any,
-    rewards: np.ndarray,
-    dones: np.ndarray,
-    infos: list[dict],
-) -> dict[str, Any]:
-    """The callbacks' ``locals`` at a step, with the names SB3's ``collect_rollouts`` gives them (``self``: the
-    algorithm)."""
-    return {
-        "self": owner,
-        "env": env,
-        "callback": callback,
-        "rollout_buffer": rollout_buffer,
-        "n_rollout_steps": n_rollout_steps,
-        "n_steps": n_steps,
-        "step": step,
-        "new_obs": new_obs,
-        "rewards": rewards,
-        "dones": dones,
-        "infos": infos,
-    }

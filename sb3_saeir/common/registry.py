@@ -2,7 +2,7 @@
 intrinsic-reward names (``intrinsic_reward="saeir"`` -> the callback class the algorithm adds).
 
 This module holds the registries' storage and lookups; the package's own tasks are registered into it by
-:mod:`sb3_saeir.envs.registry` and its bonuses by their modules in :mod:`sb3_saeir.intrinsic` (both run by
+:mod:`sb3_saeir.envs.registry` and its bonuses by their modules in ``sb3_saeir.intrinsic`` (both run by
 ``import sb3_saeir``, hence by importing any ``sb3_saeir`` module). The task functions are importable from
 ``sb3_saeir.envs`` and ``sb3_saeir.envs.registry``, :func:`register_intrinsic_reward` from ``sb3_saeir.intrinsic``.
 

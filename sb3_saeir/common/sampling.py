@@ -1,7 +1,7 @@
 """Double-buffered sampling: the policy acts for one group of games while the other groups step.
 
 With the games in worker processes (``make_multiagent_vec_env(..., num_cpus=k)``), each worker's games form a group
-(:attr:`~sb3_saeir.common.vec_env.MultiAgentVecEnv.sampling_groups`). ``MAPPO(..., double_buffered=...)`` (and
+(:attr:`~sb3_saeir.common.vec_env.GroupedVecEnv.sampling_groups`). ``MAPPO(..., double_buffered=...)`` (and
 ``SAEIR_PPO``) keeps every group stepping: as soon as one group's step comes back, the policy computes that group's
 next actions and sends them, while the other groups' engines run (Sample Factory's double-buffered sampling). The
 policy is fixed during a rollout and every network computes per slot or per game, so the maths is that of the

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import errno
+import inspect
 import io
 import json
 import signal
@@ -40,6 +41,7 @@ from typing import Any
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import KVWriter
+from stable_baselines3.common.utils import configure_logger
 
 from sb3_saeir.common.atomic import atomic_write_text, keep_damaged
 from sb3_saeir.common.run_state import (
@@ -517,6 +519,23 @@ class RunOutput:
     verbose: int = 0
     stop_on_ctrl_c: bool = False
     callbacks: list[BaseCallback] = field(default_factory=list)
+
+
+def command_output(model: Any, verbose: int, progress_bar: bool, continued: bool, callbacks: list[BaseCallback]) -> RunOutput:
+    """How a run of a command line shows itself: SB3's stdout (``verbose`` >= 1) and tensorboard (the model's
+    ``tensorboard_log``) writers, the latter going on in the latest ``<tb_log_name>_<N>`` folder when ``continued``
+    (as SB3's ``reset_num_timesteps=False`` does), the progress bar, Ctrl-C's checkpoint and the command's callbacks.
+
+    :param model: the run's model
+    :param verbose: the command's verbosity
+    :param progress_bar: SB3's progress bar
+    :param continued: the run or its model goes on (``--resume``, ``-i``)
+    :param callbacks: more callbacks (an ETA line, ...)
+    """
+    tb_log_name = inspect.signature(type(model).learn).parameters["tb_log_name"].default
+    sb3_logger = configure_logger(verbose, model.tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
+    formats = [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
+    return RunOutput(formats, progress_bar, verbose, True, callbacks)
 
 
 class Run:

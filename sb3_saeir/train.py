@@ -28,7 +28,6 @@ continue a saved model with a fresh state (new run, new generators, fresh env). 
 from __future__ import annotations
 
 import argparse
-import inspect
 import sys
 import time
 import zipfile
@@ -38,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.utils import configure_logger, set_random_seed
+from stable_baselines3.common.utils import set_random_seed
 
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
@@ -61,7 +60,7 @@ from sb3_saeir.config import (
 )
 from sb3_saeir.envs import list_tasks
 from sb3_saeir.experiment import Experiment, claimed_run_folder, config_budget, find_run_folder, model_method_mismatch
-from sb3_saeir.run import Run, RunOutput, RunSpec, RunStoppedError, config_record, stored_record
+from sb3_saeir.run import Run, RunSpec, RunStoppedError, command_output, config_record, stored_record
 
 __all__ = [
     "CONFIG_KEYS",
@@ -138,16 +137,6 @@ def legacy_train_record(stored_args: dict[str, Any], stored_config: dict[str, An
     }
 
 
-def output_of(args: argparse.Namespace, model: Any, continued: bool, n_timesteps: int) -> RunOutput:
-    """How a ``train`` run shows itself: SB3's stdout (``--verbose`` >= 1) and tensorboard (``-tb``) writers (the
-    latter going on in the latest ``<tb_log_name>_<N>`` folder when ``continued``, as SB3's
-    ``reset_num_timesteps=False`` does), the progress bar, Ctrl-C's checkpoint and the ETA line."""
-    tb_log_name = inspect.signature(type(model).learn).parameters["tb_log_name"].default
-    sb3_logger = configure_logger(args.verbose, model.tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
-    formats = [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
-    return RunOutput(formats, args.progress, args.verbose, True, [BudgetEstimate(n_timesteps)])
-
-
 def train(args: argparse.Namespace) -> Path:
     """Train one run (or, with ``--resume``, continue one from its newest checkpoint that loads); returns its folder.
 
@@ -203,7 +192,8 @@ def train(args: argparse.Namespace) -> Path:
         start = time.time()
         continued = run.resume is not None or bool(args.trained_agent)
         assert experiment.model is not None
-        run.start(experiment, output_of(args, experiment.model, continued, n_timesteps))
+        output = command_output(experiment.model, args.verbose, args.progress, continued, [BudgetEstimate(n_timesteps)])
+        run.start(experiment, output)
         model_path = run.train()
         if run.checkpoints is not None and run.checkpoints.stopped_at is not None:
             print(f"Stopped at the checkpoint {run.checkpoints.stopped_at}: the same command with --resume continues it.")

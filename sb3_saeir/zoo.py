@@ -51,12 +51,15 @@ Pitfalls (rl-zoo3 2.9.2):
 - ``--eval-freq`` and ``--save-freq`` are divided by ``n_envs`` (games), but the callbacks fire once per vec step,
   i.e. every ``n_games * n_agents`` agent-steps: the effective period is ``freq * n_agents`` agent-steps (3 agents,
   ``--eval-freq 4000``: every 12,000 agent-steps). Pass ``freq / n_agents`` for a period in agent-steps.
-- Evaluation (SB3's ``evaluate_policy``) counts *agent*-episodes: ``--eval-episodes`` is split over the
-  ``n_eval_envs * n_agents`` slots and each agent's own return is averaged (for the package's tasks, whose reward is
-  shared by the team, an agent's return is the team return). Use a multiple of ``n_eval_envs * n_agents``.
-  ``eval/success_rate`` is per game. SB3 warns that the eval env has no ``Monitor`` (expected: a ``VecMonitor`` would
-  count agents, and a per-game monitor would stall ``evaluate_policy``). ``best_model.zip`` is chosen by mean return,
-  not by the task's main metric.
+- On a package task the launcher's ``train`` runs as a :class:`~sb3_saeir.run.Run` in rl-zoo3's run folder
+  (:func:`learn_in_run`): rl-zoo3 builds the config, the env and the model; the run's evaluations (``--eval-episodes``
+  game episodes, the task's main metric for ``best_model.zip``, at the start, every ``--eval-freq // n_envs`` vec steps
+  on the grid, at the end), its resumable checkpoints (every ``--save-freq // n_envs`` vec steps), ``progress.csv``,
+  Ctrl-C's checkpoint and the final ``<task>.zip`` take the place of rl-zoo3's ``EvalCallback`` and
+  ``CheckpointCallback`` (the config's own callbacks and the progress bar stay). ``--resume`` (``N``, a run folder's
+  path, or the latest run) continues a stopped run exactly, with its own seed, and keeps its ``config.yml`` and
+  ``args.yml``. With a stock algorithm or env, rl-zoo3's evaluation (SB3's ``evaluate_policy``) counts
+  *agent*-episodes: ``--eval-episodes`` is split over the ``n_eval_envs * n_agents`` slots.
 - Monitor files: rl-zoo3's per-game ``<i>.monitor.csv`` would stay empty (the game envs are never stepped), so
   :func:`games_to_agents` deletes these header-only files and writes ``games.monitor.csv`` in the run folder: one row
   per finished game (``r`` team return = per-step reward averaged over the game's agents, summed over the episode;
@@ -76,7 +79,8 @@ Pitfalls (rl-zoo3 2.9.2):
   enjoy passes the GRU states back to ``predict``.
 - ``ippo`` (SB3 ``PPO``) has ``batch_size: 9600`` (the whole rollout of 128 games): set ``batch_size`` too when
   overriding ``n_envs`` (``sb3_saeir.config.build_model`` rescales it; rl-zoo3 does not).
-- ``-optimize`` is not supported (no samplers registered for the package's methods).
+- ``-optimize`` is not supported (no samplers registered for the package's methods); neither is ``--resume`` with a
+  stock env.
 """
 
 from __future__ import annotations
@@ -572,9 +576,12 @@ def _run_train(argv: Sequence[str]) -> int:
     from rl_zoo3.exp_manager import ExperimentManager
     from rl_zoo3.train import train
 
-    from sb3_saeir.config import ConfigError, load_yaml
+    from sb3_saeir.config import ConfigError, load_yaml, resume_target
 
     try:
+        resume, argv = _mini_parser(
+            [(["--resume"], {"nargs": "?", "type": resume_target, "const": 0, "default": None})]
+        ).parse_known_args(list(argv))
         new_argv = prepare_train_args(argv)
         check_train_args(new_argv)
     except ConfigError as error:
@@ -582,33 +589,43 @@ def _run_train(argv: Sequence[str]) -> int:
         return 2
     sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
     package_env = is_package_env(_mini_parser([(["--env"], {"default": "CartPole-v1"})]).parse_known_args(new_argv)[0].env)
-    original_learn = ExperimentManager.learn
+    if resume.resume is not None and not package_env:
+        print("sb3_saeir.zoo: error: --resume continues runs of the package's tasks only.", file=sys.stderr)
+        return 2
     original_setup = ExperimentManager.setup_experiment
+    original_save_config = ExperimentManager._save_config
 
     def setup_or_clean_up(manager: Any) -> Any:
-        """rl-zoo3's setup (config, env, model); a failure removes the folders it created and becomes one line."""
+        """rl-zoo3's setup (config, env, model) in the run's folder (the one resumed, with its seed); a failure
+        removes the folders it created and becomes one line."""
+        if resume.resume is not None:
+            _continue_in_run_folder(manager, resume.resume)
         folders = [Path(manager.log_path).parent, Path(manager.log_path), Path(manager.save_path)]
         created = [folder for folder in folders if not folder.exists()]
         try:
-            return original_setup(manager)
+            result = original_setup(manager)
         except Exception as error:
             remove_created_folders(created)
             raise ConfigError(f"cannot set up {manager.algo} on {manager.env_name}: {one_line(error)}") from error
+        manager.saeir_config = dict(result[1]) if result is not None else {}
+        return result
 
-    def learn_with_eta(manager: Any, model: Any) -> None:
-        """rl-zoo3's learn, with the ETA line ``sb3_saeir.train`` prints (a package task's budget is agent-steps)."""
-        from sb3_saeir.common.callbacks import BudgetEstimate
-
-        manager.callbacks = [*manager.callbacks, BudgetEstimate(int(manager.n_timesteps))]
-        original_learn(manager, model)
+    def save_config_of_new_runs(manager: Any, saved_hyperparams: dict[str, Any]) -> None:
+        """rl-zoo3's config.yml and args.yml, for a new run only (a resumed run keeps its own)."""
+        if resume.resume is None:
+            original_save_config(manager, saved_hyperparams)
 
     # rl-zoo3 reads --conf-file with yaml.safe_load, which leaves 5e-4 a string: read it as the package's configs are
     try:
         with mock.patch.object(yaml, "safe_load", load_yaml):
             if package_env:
                 with (
-                    mock.patch.object(ExperimentManager, "learn", learn_with_eta),
+                    mock.patch.object(
+                        ExperimentManager, "learn", lambda manager, model: learn_in_run(manager, model, resume.resume)
+                    ),
+                    mock.patch.object(ExperimentManager, "save_trained_model", lambda manager, model: None),
                     mock.patch.object(ExperimentManager, "setup_experiment", setup_or_clean_up),
+                    mock.patch.object(ExperimentManager, "_save_config", save_config_of_new_runs),
                 ):
                     train()
             else:
@@ -617,6 +634,84 @@ def _run_train(argv: Sequence[str]) -> int:
         print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
         return 2
     return 0
+
+
+def _continue_in_run_folder(manager: Any, resume: int | Path) -> None:
+    """Point rl-zoo3's run at the folder ``--resume`` names (the latest run, run ``N`` or a folder's path) and its
+    seed, instead of a new run folder."""
+    from sb3_saeir.config import ConfigError
+    from sb3_saeir.experiment import find_run_folder
+    from sb3_saeir.run import read_spec_file
+
+    folder = find_run_folder(Path(manager.log_path).parent, manager.algo, manager.env_name.gym_id, resume)
+    try:
+        record = read_spec_file(folder)
+    except ConfigError as error:
+        raise ConfigError(f"--resume: {error}") from None
+    if record is None:
+        raise ConfigError(f"--resume: {folder} has no spec.json: it is not a run of this command.")
+    manager.save_path = str(folder)
+    manager.params_path = f"{folder}/{manager.env_name}"
+    manager.seed = int(record["seed"])
+    manager.saeir_stored = record
+
+
+def learn_in_run(manager: Any, model: Any, resume: int | Path | None) -> None:
+    """rl-zoo3's ``learn`` for a package task, as a :class:`~sb3_saeir.run.Run` in rl-zoo3's run folder: the package's
+    evaluations (game episodes, the task's main metric; at the start, every ``--eval-freq // n_envs`` vec steps on the
+    grid, at the end), resumable checkpoints every ``--save-freq // n_envs`` vec steps, ``progress.csv``, Ctrl-C's
+    checkpoint, the final ``<task>.zip`` and ``done.json``; with ``--resume``, the run folder's checkpoint. rl-zoo3's
+    own evaluation and checkpoint callbacks give way to the run's (the effective periods are rl-zoo3's).
+
+    :param manager: rl-zoo3's ``ExperimentManager``, set up
+    :param model: the model it built (or loaded with ``-i``)
+    :param resume: ``--resume``'s value (``None``: a new run)
+    """
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+
+    from sb3_saeir.common.callbacks import BudgetEstimate
+    from sb3_saeir.experiment import Experiment
+    from sb3_saeir.run import Run, RunLog, RunSpec, command_output, config_record
+
+    task, env = manager.env_name.gym_id, model.get_env()
+    vec_step = env.num_envs  # agent-steps
+
+    def period(freq: int) -> int:
+        """rl-zoo3's callback period in agent-steps (0: off); its setup already made ``--eval-freq`` and ``--save-freq``
+        ``freq // n_envs`` vec steps."""
+        return freq * vec_step if freq > 0 else 0
+
+    for callback in manager.callbacks:
+        if isinstance(callback, EvalCallback):
+            callback.eval_env.close()
+    callbacks = [c for c in manager.callbacks if not isinstance(c, (EvalCallback, CheckpointCallback))]
+    folder = Path(manager.save_path)
+    options = {"--save-freq": manager.save_freq, "-i": manager.trained_agent, "--device": manager.device}
+    spec = RunSpec(
+        manager.algo, task, manager.seed, int(manager.n_timesteps), manager.n_envs, period(manager.eval_freq),
+        manager.n_eval_episodes, {}, config_record(manager.saeir_config), options,
+    )  # fmt: skip
+    save_freq = period(manager.save_freq) or sys.maxsize  # never but on Ctrl-C
+    run = Run(folder, spec, save_freq=save_freq, command=vars(manager.args) if hasattr(manager, "args") else {},
+              continue_model=bool(manager.trained_agent), log=RunLog(folder))  # fmt: skip
+    if resume is not None:
+        run.check_resumable(spec.n_timesteps)
+        run.check_settings(manager.saeir_stored, by_path=isinstance(resume, Path))
+        env.append = True  # the monitor goes on with its CSV
+        print(f"Resuming {folder} from {run.resume.checkpoint.name if run.resume else '?'}")
+    experiment = Experiment(manager.algo, task, {"env_kwargs": dict(manager.env_kwargs)}, seed=manager.seed,
+                            log_folder=folder, n_games=manager.n_envs)  # fmt: skip
+    experiment.env, experiment.model = env, model
+    continued = resume is not None or bool(manager.trained_agent)
+    output = command_output(
+        model, manager.verbose, manager.show_progress, continued, [*callbacks, BudgetEstimate(spec.n_timesteps)]
+    )
+    try:
+        run.write_spec()
+        run.start(experiment, output)
+        run.train()
+    finally:
+        experiment.close()
 
 
 def one_line(error: BaseException) -> str:

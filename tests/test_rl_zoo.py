@@ -1,8 +1,10 @@
 """rl-zoo3 interop (sb3_saeir.zoo): rl-zoo3's own train and enjoy run the package's methods on its tasks."""
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import gymnasium as gym
@@ -48,7 +50,9 @@ def test_train_and_enjoy(tmp_path, algo):
     model = ALGOS[algo].load(run / f"{TASK}.zip", device="cpu")
     assert model.n_agents == 3 and model.n_envs == 6  # n_envs = 2 games -> 6 agent slots
     assert model.num_timesteps == 300  # agent-steps
-    assert np.load(run / "evaluations.npz")["timesteps"].tolist() == [180]  # 30 vec steps x 6 slots
+    # a Run's evaluations: at the start, every 30 vec steps x 6 slots (rl-zoo3's period), at the end
+    assert np.load(run / "evaluations.npz")["timesteps"].tolist() == [0, 180, 300]
+    assert (run / "spec.json").is_file() and (run / "done.json").is_file() and (run / "evaluations.csv").is_file()
 
     # per-game monitor: rl-zoo3's empty per-game files are replaced by one row per finished game
     assert not list(run.glob("[0-9]*.monitor.csv"))
@@ -62,6 +66,45 @@ def test_train_and_enjoy(tmp_path, algo):
     assert f"Loading {run / TASK}.zip" in result.stdout
     assert "4 finished games (2 in parallel)" in result.stdout  # --n-envs 1 became 2 games; 50 steps = 2 episodes
     assert len(load_results(str(tmp_path / "replay"))) == 4
+
+
+# 900 agent-steps of 2 games x 3 agents; checkpoints every 40 // 2 = 20 vec steps (120 agent-steps), evaluations every
+# 60 // 2 = 30 vec steps (180 agent-steps)
+RESUMED = [
+    "train", "--algo", "mappo", "--env", TASK, "--conf-file", "zoo_configs/mappo.yml", "--num-threads", "1", "--device",
+    "cpu", "--seed", "0", "-n", "900", "-params", "n_envs:2", "n_steps:10", "--eval-freq", "60", "--eval-episodes", "2",
+    "--save-freq", "40",
+]  # fmt: skip
+
+
+def test_zoo_train_killed_and_resumed_ends_as_uninterrupted(tmp_path):
+    """``python -m sb3_saeir.zoo train --resume`` (a package task: the run is a ``Run`` in rl-zoo3's folder) after a
+    SIGKILL mid-run ends with the uninterrupted run's parameters, training rows, evaluations and monitor rows."""
+    from tests.run_folders import assert_same_parameters, monitor_rows, read_rows
+
+    run_launcher(*RESUMED, "-f", str(tmp_path / "reference"))
+    reference = tmp_path / "reference" / "mappo" / f"{TASK}_1"
+    folder = tmp_path / "killed" / "mappo" / f"{TASK}_1"
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
+    command = [sys.executable, "-m", "sb3_saeir.zoo", *RESUMED, "-f", str(tmp_path / "killed")]
+    process = subprocess.Popen(command, cwd=REPO, env=env, start_new_session=True, stdout=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    while len(list(folder.glob("rl_model_*_steps.zip"))) < 3:
+        assert process.poll() is None, "the run ended before it could be killed"
+        assert time.time() < deadline
+        time.sleep(0.005)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    assert not (folder / "done.json").exists()
+    resumed = run_launcher(*RESUMED, "-f", str(tmp_path / "killed"), "--resume")
+    assert f"Resuming {folder}" in resumed.stdout
+    assert_same_parameters(folder / f"{TASK}.zip", reference / f"{TASK}.zip")
+    rows, expected_rows = read_rows(folder / "progress.csv"), read_rows(reference / "progress.csv")
+    keys = [key for key in expected_rows[0] if not key.startswith("time/") or key == "time/total_timesteps"]
+    assert [[row.get(key) for key in keys] for row in rows] == [[row[key] for key in keys] for row in expected_rows]
+    for name in ("timesteps", "results"):
+        np.testing.assert_array_equal(np.load(folder / "evaluations.npz")[name], np.load(reference / "evaluations.npz")[name])
+    assert monitor_rows(folder) == monitor_rows(reference) and len(monitor_rows(reference)) > 0
 
 
 def zoo_game_venv(n_games, seed, monitor_dir=None):

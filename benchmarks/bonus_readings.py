@@ -1,10 +1,11 @@
 """The three readings of the SAEIR bonus on a model's own rollouts, beside the supplement's Fig. 3.
 
-    python benchmarks/bonus_readings.py --model $HOME/saeir-results/stage2b/saeir-supplement/runs/*/*/cn-sparse-n3.zip
+    python benchmarks/bonus_readings.py --model <out>/runs/saeir_ppo/cn-sparse-n3_s*/cn-sparse-n3.zip
     python benchmarks/bonus_readings.py --algo saeir_ppo --task cn-sparse-n3      # an untrained model
 
-For each model (a benchmark run's final ``<task>.zip``, or ``model.zip`` of runs before 0.2.0a0: its ``spec.json`` next to it gives the method, task and config; or
-``--algo``/``--task`` for a model saved elsewhere, or for an untrained one when ``--model`` is left out), the script
+For each model (a benchmark run's final ``<task>.zip``, ``model.zip`` for runs finished before 0.2.0a0: its
+``spec.json`` next to it gives the method, task and config; or ``--algo``/``--task`` for a model saved elsewhere, or
+for an untrained one when ``--model`` is left out), the script
 plays ``--rollouts`` rollouts of ``--n-games`` games on the model's task with the model's policy, exactly as training
 collects them (same buffer, stored normalised critic values, bootstrap values), without updating anything. On every
 rollout window it computes ``coef * saeir_bonus(values, variant)`` for each reading (``"code"``, ``"paper"``,

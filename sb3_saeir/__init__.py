@@ -2,7 +2,7 @@
 
 from pathlib import Path as _Path
 
-from sb3_saeir.common.vec_env import MultiAgentVecEnv, make_multiagent_vec_env
+from sb3_saeir.common.vec_env import GroupedVecEnv, MultiAgentVecEnv, make_multiagent_vec_env
 
 # Importing sb3_saeir.envs registers the package's tasks into sb3_saeir.common.registry. Importing any sb3_saeir module
 # runs this file first, so they are registered before any code can look a task up.
@@ -15,6 +15,7 @@ __version__ = (_Path(__file__).parent / "version.txt").read_text().strip()
 __all__ = [
     "MAPPO",
     "SAEIR_PPO",
+    "GroupedVecEnv",
     "MAPPOPolicy",
     "MSHGPolicy",
     "MultiAgentVecEnv",

@@ -320,7 +320,7 @@ def test_native_vec_env_api():
     env = make_multiagent_vec_env(
         "cn-sparse-n3", n_games=2, seed=0, render_mode="rgb_array", mark_truncation=True, max_cycles=4
     )
-    assert isinstance(env, MultiAgentVecEnv) and isinstance(env, NavigationVecEnv)
+    assert isinstance(env, GroupedVecEnv) and isinstance(env, NavigationVecEnv) and not isinstance(env, MultiAgentVecEnv)
     assert (env.n_agents, env.n_games, env.possible_agents) == (3, 2, ["agent_0", "agent_1", "agent_2"])
     assert env.game_of(4) == 1
     obs = env.reset()

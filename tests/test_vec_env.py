@@ -7,7 +7,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.common.vec_env import AgentDeathError, MultiAgentVecEnv
+from sb3_saeir.common.vec_env import AgentDeathError, GroupedVecEnv
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from tests.toy_envs import DyingAgentsEnv, MixedSpacesEnv
 
@@ -27,7 +27,7 @@ def env(request):
 
 
 def test_layout_attributes(env):
-    assert isinstance(env, MultiAgentVecEnv)
+    assert isinstance(env, GroupedVecEnv)
     assert (env.n_agents, env.n_games, env.num_envs) == (3, 3, 9)
     assert env.possible_agents == ["agent_0", "agent_1", "agent_2"]
     assert env.observation_space.shape == (18,)

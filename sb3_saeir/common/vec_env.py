@@ -923,7 +923,7 @@ def make_multiagent_vec_env(
     backend: str | None = None,
     check_finite: bool = True,
     **task_kwargs: Any,
-) -> MultiAgentVecEnv:
+) -> GroupedVecEnv:
     """Create an SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game, one slot per agent.
 
     Mirrors :func:`stable_baselines3.common.env_util.make_vec_env`: all agents share one policy (parameter sharing);
@@ -966,7 +966,7 @@ def make_multiagent_vec_env(
                 "backend='supersuit'."
             )
         if native is not None and (backend == "native" or num_cpus <= 1):
-            native_env: MultiAgentVecEnv = native(n_games, mark_truncation=mark_truncation, **task_kwargs)
+            native_env: GroupedVecEnv = native(n_games, mark_truncation=mark_truncation, **task_kwargs)
             native_env.check_finite = check_finite
             if seed is not None:
                 native_env.seed(seed)

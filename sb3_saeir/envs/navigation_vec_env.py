@@ -20,7 +20,7 @@ import gymnasium as gym
 import numpy as np
 
 from sb3_saeir.common.utils import check_bool
-from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, GroupedVecEnv, MultiAgentVecEnv, RawStep
+from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, GroupedVecEnv, RawStep
 from sb3_saeir.common.vec_env import check_finite as check_finite_values
 from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
@@ -266,9 +266,3 @@ class NavigationVecEnv(GroupedVecEnv):
             f"NavigationVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
             f"world={self.core.world!r}, reward={self.core.reward!r})"
         )
-
-
-# Compatibility: code written before GroupedVecEnv checks ``isinstance(env, MultiAgentVecEnv)`` or annotates
-# make_multiagent_vec_env's result as a MultiAgentVecEnv, which this class was a subclass of; it is a virtual one now
-# (an ABC registration: it shares GroupedVecEnv with MultiAgentVecEnv, not MultiAgentVecEnv's SuperSuit machinery).
-MultiAgentVecEnv.register(NavigationVecEnv)

@@ -40,8 +40,6 @@ from sb3_saeir.evaluation import MultiAgentEvalCallback
 EVAL_SEED_OFFSET = 10_000
 # At most this many games play an evaluation in parallel.
 MAX_EVAL_GAMES = 10
-# File name of the resumable checkpoints in a training run's folder (SB3's CheckpointCallback naming).
-CHECKPOINT_NAME = "rl_model_{steps}_steps.zip"
 
 
 class Experiment:
@@ -382,12 +380,6 @@ def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | 
     if number not in runs:
         raise ConfigError(f"--resume {number}: no run {number} of {algo} on {task} in {where}; runs: {sorted(runs)}.")
     return runs[number]
-
-
-def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
-    """The resumable checkpoints of a training run's folder (``rl_model_<steps>_steps.zip``), by agent-steps."""
-    prefix, suffix = CHECKPOINT_NAME.split("{steps}")
-    return numbered_paths(folder, prefix, suffix)
 
 
 def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:

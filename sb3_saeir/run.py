@@ -587,14 +587,6 @@ class Run:
         """Whether the run is finished (``done.json``)."""
         return (self.folder / DONE_FILE).is_file()
 
-    def differences(self, stored: dict[str, Any] | None, ignored: tuple[str, ...] = ()) -> list[str]:
-        """What differs between the run's record (``stored``, default its ``spec.json``) and :attr:`spec`."""
-        if stored is None:
-            stored = read_spec_file(self.folder)
-        if stored is None:
-            return []
-        return spec_differences(stored, spec_record(self.spec), ignored)
-
     def check_resumable(self, n_timesteps: int) -> None:
         """Find where ``--resume`` continues the run (:meth:`open`); refuse a run with no checkpoint that loads, or a
         finished one.
@@ -632,7 +624,7 @@ class Run:
         :param by_path: the run was given by its folder's path (``--resume FOLDER``)
         :raises ~sb3_saeir.config.ConfigError: naming what differs and the fix
         """
-        differences = self.differences(stored, ignored=("-f",) if by_path else ())
+        differences = spec_differences(stored, spec_record(self.spec), ignored=("-f",) if by_path else ())
         if differences:
             moved = any(difference.startswith("-f ") for difference in differences)
             hint = f" If the run folder was moved, give its path instead: --resume {self.folder}." if moved else ""

@@ -71,3 +71,12 @@ def ctrl_c():
 
     yield send
     signal.signal(signal.SIGINT, previous_handler)
+
+
+@pytest.fixture(scope="session")
+def finished_tiny_run(tmp_path_factory):
+    """The tiny ``train`` run of :mod:`tests.run_folders`, trained to its end once per test process. Read-only: the
+    tests of damaged and moved run folders resume copies of it (:func:`tests.run_folders.unfinished_copy`)."""
+    from tests.run_folders import finished_run
+
+    return finished_run(tmp_path_factory.mktemp("uninterrupted"))

@@ -20,7 +20,6 @@ from tests.run_folders import (
     argv,
     assert_same_parameters,
     checkpoint,
-    finished_run,
     monitor_rows,
     read_rows,
     snapshot,
@@ -28,16 +27,10 @@ from tests.run_folders import (
 )
 
 
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """The tiny run, uninterrupted."""
-    return finished_run(tmp_path_factory.mktemp("uninterrupted"))
-
-
 @pytest.fixture
-def run(reference, tmp_path):
+def run(finished_tiny_run, tmp_path):
     """A copy of the run stopped after its last checkpoint (840 agent-steps)."""
-    return unfinished_copy(reference, tmp_path / "logs")
+    return unfinished_copy(finished_tiny_run, tmp_path / "logs")
 
 
 def resume(run, capsys):
@@ -84,7 +77,7 @@ DAMAGED_CHECKPOINTS = {
 
 
 @pytest.mark.parametrize("damage", list(DAMAGED_CHECKPOINTS))
-def test_resume_falls_back_to_the_newest_checkpoint_that_loads(reference, run, capsys, damage):
+def test_resume_falls_back_to_the_newest_checkpoint_that_loads(finished_tiny_run, run, capsys, damage):
     damage_file, steps = DAMAGED_CHECKPOINTS[damage]
     for step in steps:
         damage_file(checkpoint(run, step))
@@ -95,8 +88,8 @@ def test_resume_falls_back_to_the_newest_checkpoint_that_loads(reference, run, c
     assert all(checkpoint(run, step).name in notes[0] for step in steps), notes
     resumed_from = checkpoint(run, min(steps) - 120)
     assert f"Resuming {run} from {resumed_from.name}" in out
-    assert_same_parameters(run / f"{TASK}.zip", reference / f"{TASK}.zip")  # the run ends as uninterrupted
-    assert monitor_rows(run) == monitor_rows(reference)
+    assert_same_parameters(run / f"{TASK}.zip", finished_tiny_run / f"{TASK}.zip")  # the run ends as uninterrupted
+    assert monitor_rows(run) == monitor_rows(finished_tiny_run)
 
 
 def test_no_checkpoint_that_loads_is_refused_in_one_line(run, capsys):
@@ -180,7 +173,7 @@ DAMAGED_MONITORS = {
 
 
 @pytest.mark.parametrize("damage", list(DAMAGED_MONITORS))
-def test_monitor_rows_are_written_again_from_the_checkpoint(reference, run, capsys, damage):
+def test_monitor_rows_are_written_again_from_the_checkpoint(finished_tiny_run, run, capsys, damage):
     damage_file, said = DAMAGED_MONITORS[damage]
     path = run / "games.monitor.csv"
     damage_file(path)
@@ -188,7 +181,7 @@ def test_monitor_rows_are_written_again_from_the_checkpoint(reference, run, caps
     assert status == 0, err
     notes = [line for line in out.splitlines() if line.startswith(f"Note: {path}")]
     assert len(notes) == 1 and said in notes[0], out
-    assert monitor_rows(run) == monitor_rows(reference)  # every row, none lost
+    assert monitor_rows(run) == monitor_rows(finished_tiny_run)  # every row, none lost
     kept = list(run.glob("games.monitor.csv.damaged-*"))
     assert len(kept) == (0 if damage == "deleted" else 1)
 
@@ -207,48 +200,50 @@ def steps_column(rows):
     return [row["time/total_timesteps"] for row in rows]
 
 
-def test_deleted_progress_csv_is_reported_with_its_rows(reference, run, capsys):
+def test_deleted_progress_csv_is_reported_with_its_rows(finished_tiny_run, run, capsys):
     (run / "progress.csv").unlink()
     status, out, err = resume(run, capsys)
     assert status == 0, err
-    n_rows = len(checkpoint_rows(reference))
+    n_rows = len(checkpoint_rows(finished_tiny_run))
     assert f"Note: {run / 'progress.csv'} is missing: the {n_rows} rows written up to the checkpoint cannot be restored" in out
-    assert steps_column(read_rows(run / "progress.csv")) == steps_column(later_rows(reference))
+    assert steps_column(read_rows(run / "progress.csv")) == steps_column(later_rows(finished_tiny_run))
 
 
 @pytest.mark.parametrize("fraction", [0.3, 0.7])
-def test_progress_csv_cut_mid_row_is_reported_with_its_rows(reference, run, capsys, fraction):
+def test_progress_csv_cut_mid_row_is_reported_with_its_rows(finished_tiny_run, run, capsys, fraction):
     path = run / "progress.csv"
     cut_mid_row(path, fraction)
     whole_rows = len(path.read_bytes().split(b"\n")) - 2  # the header, and the row cut short
     status, out, err = resume(run, capsys)
     assert status == 0, err
-    lost = len(checkpoint_rows(reference)) - whole_rows
+    lost = len(checkpoint_rows(finished_tiny_run)) - whole_rows
     note = re.search(rf"Note: {re.escape(str(path))}: (\d+) rows written up to the checkpoint cannot be restored", out)
     assert note is not None and int(note[1]) == lost > 0, out
     assert f"{lost} missing at its end" in out and "the damaged file is kept as progress.csv.damaged-" in out
-    expected = [*checkpoint_rows(reference)[:whole_rows], *later_rows(reference)]
+    expected = [*checkpoint_rows(finished_tiny_run)[:whole_rows], *later_rows(finished_tiny_run)]
     assert steps_column(read_rows(path)) == steps_column(expected)  # nothing else lost
     assert len(list(run.glob("progress.csv.damaged-*"))) == 1
 
 
-def test_a_garbled_progress_row_is_reported_by_its_line(reference, run, capsys):
+def test_a_garbled_progress_row_is_reported_by_its_line(finished_tiny_run, run, capsys):
     path = run / "progress.csv"
     replace_line(path, 3, b"1,2,three")
     status, out, err = resume(run, capsys)
     assert status == 0, err
     assert f"Note: {path}: 1 rows written up to the checkpoint cannot be restored (1 damaged (lines 4))" in out
-    expected = [row for index, row in enumerate(checkpoint_rows(reference)) if index != 2] + later_rows(reference)
+    expected = [row for index, row in enumerate(checkpoint_rows(finished_tiny_run)) if index != 2] + later_rows(
+        finished_tiny_run
+    )
     assert steps_column(read_rows(path)) == steps_column(expected)
 
 
-def test_a_garbled_progress_header_is_reported(reference, run, capsys):
+def test_a_garbled_progress_header_is_reported(finished_tiny_run, run, capsys):
     path = run / "progress.csv"
     replace_line(path, 0, b"not,a,header")
     status, out, err = resume(run, capsys)
     assert status == 0, err
-    assert f"Note: {path} has no readable header: the {len(checkpoint_rows(reference))} rows" in out
-    assert steps_column(read_rows(path)) == steps_column(later_rows(reference))
+    assert f"Note: {path} has no readable header: the {len(checkpoint_rows(finished_tiny_run))} rows" in out
+    assert steps_column(read_rows(path)) == steps_column(later_rows(finished_tiny_run))
 
 
 # ---------------------------------------------------------------------------------------------------- the benchmark

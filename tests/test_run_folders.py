@@ -15,53 +15,46 @@ from tests.run_folders import (
     TASK,
     argv,
     assert_same_parameters,
-    finished_run,
     monitor_rows,
     snapshot,
     unfinished_copy,
 )
 
 
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """The tiny run, uninterrupted."""
-    return finished_run(tmp_path_factory.mktemp("uninterrupted"))
-
-
 # ---------------------------------------------------------------------------------------------------- moved runs
 @pytest.mark.parametrize("log_folder", ["the old one", "the new one", "the default"])
-def test_a_moved_run_resumes_by_its_path(reference, tmp_path, monkeypatch, capsys, log_folder):
-    """The run was started with ``-f <reference's log folder>`` and moved under ``tmp_path/moved``; its command
+def test_a_moved_run_resumes_by_its_path(finished_tiny_run, tmp_path, monkeypatch, capsys, log_folder):
+    """The run was started with ``-f <the finished run's log folder>`` and moved under ``tmp_path/moved``; its command
     with ``--resume FOLDER`` continues it there whatever ``-f`` says, and nothing is written elsewhere."""
-    run = unfinished_copy(reference, tmp_path / "moved", moved=True)
-    command = argv(reference.parent.parent, "--resume", str(run))
+    run = unfinished_copy(finished_tiny_run, tmp_path / "moved", moved=True)
+    command = argv(finished_tiny_run.parent.parent, "--resume", str(run))
     if log_folder == "the new one":
         command[command.index("-f") + 1] = str(tmp_path / "moved")
     elif log_folder == "the default":
         del command[command.index("-f") : command.index("-f") + 2]
-    before = snapshot(reference.parent.parent)
+    before = snapshot(finished_tiny_run.parent.parent)
     monkeypatch.chdir(tmp_path)  # the default -f, logs/, is relative
     assert train_main(command) == 0, capsys.readouterr().err
     assert f"Resuming {run} from rl_model_840_steps.zip" in capsys.readouterr().out
-    assert_same_parameters(run / f"{TASK}.zip", reference / f"{TASK}.zip")
-    assert monitor_rows(run) == monitor_rows(reference)
-    assert snapshot(reference.parent.parent) == before and not (tmp_path / "logs").exists()
+    assert_same_parameters(run / f"{TASK}.zip", finished_tiny_run / f"{TASK}.zip")
+    assert monitor_rows(run) == monitor_rows(finished_tiny_run)
+    assert snapshot(finished_tiny_run.parent.parent) == before and not (tmp_path / "logs").exists()
 
 
-def test_plain_resume_of_a_moved_run_names_the_way(reference, tmp_path, capsys):
-    run = unfinished_copy(reference, tmp_path / "moved", moved=True)
+def test_plain_resume_of_a_moved_run_names_the_way(finished_tiny_run, tmp_path, capsys):
+    run = unfinished_copy(finished_tiny_run, tmp_path / "moved", moved=True)
     before = snapshot(run)
     assert train_main(argv(tmp_path / "moved", "--resume")) == 2
     err = capsys.readouterr().err
-    assert f'-f "{reference.parent.parent}" -> "{tmp_path / "moved"}"' in err and len(err.strip().splitlines()) == 1
+    assert f'-f "{finished_tiny_run.parent.parent}" -> "{tmp_path / "moved"}"' in err and len(err.strip().splitlines()) == 1
     assert f"If the run folder was moved, give its path instead: --resume {run}." in err
     assert snapshot(run) == before
 
 
-def test_resume_by_run_number_works_as_before(reference, tmp_path, capsys):
-    run = unfinished_copy(reference, tmp_path / "logs")
+def test_resume_by_run_number_works_as_before(finished_tiny_run, tmp_path, capsys):
+    run = unfinished_copy(finished_tiny_run, tmp_path / "logs")
     assert train_main(argv(tmp_path / "logs", "--resume", "1")) == 0, capsys.readouterr().err
-    assert_same_parameters(run / f"{TASK}.zip", reference / f"{TASK}.zip")
+    assert_same_parameters(run / f"{TASK}.zip", finished_tiny_run / f"{TASK}.zip")
 
 
 @pytest.mark.parametrize(
@@ -72,10 +65,10 @@ def test_resume_by_run_number_works_as_before(reference, tmp_path, capsys):
         ("no run", f"has no spec.json nor {TASK}/args.yml: it is not a run of this command"),
     ],
 )
-def test_resume_by_a_wrong_path_is_refused_in_one_line(reference, tmp_path, capsys, target, message):
+def test_resume_by_a_wrong_path_is_refused_in_one_line(finished_tiny_run, tmp_path, capsys, target, message):
     folder = tmp_path / "missing"
     if target == "other task":
-        folder = unfinished_copy(reference, tmp_path / "logs")
+        folder = unfinished_copy(finished_tiny_run, tmp_path / "logs")
         spec = json.loads((folder / "spec.json").read_text())
         (folder / "spec.json").write_text(json.dumps({**spec, "task": "cn-sparse-n4"}))
     elif target == "no run":

@@ -343,6 +343,13 @@ def check_references(references: list[Reference], metrics: dict[str, list[str]])
             raise ReportError(f"{name}: it is a value of the main metric {main}, which --metrics leaves out.")
 
 
+def shown_path(path: Path) -> str:
+    """``path`` as the report shows it: under the home folder as ``$HOME/...`` (a report names no user's home)."""
+    home = Path.home()
+    resolved = Path(path).expanduser().absolute()
+    return f"$HOME/{resolved.relative_to(home)}" if resolved.is_relative_to(home) else str(path)
+
+
 def report(args: argparse.Namespace) -> str:
     """Read the runs, play the random policy, write the figure and the Markdown; the Markdown's text."""
     runs, folders = gather(args.runs)
@@ -355,7 +362,7 @@ def report(args: argparse.Namespace) -> str:
     }
     check_references(args.reference, metrics)
     floors = random_floors(list(metrics), args.random_episodes, args.random_games, args.random_seed)
-    lines = [f"Runs: {', '.join(f'`{p}`' for p in args.runs)}", ""]
+    lines = [f"Runs: {', '.join(f'`{shown_path(p)}`' for p in args.runs)}", ""]
     if floors:
         lines += [
             f"Random policy: {args.random_episodes} episodes of uniform random actions on {args.random_games} games per "

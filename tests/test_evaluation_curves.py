@@ -122,3 +122,9 @@ def test_random_floor(curves, benchmark, tmp_path):
     for value in (coverage / 100, success / 100):
         assert math.isfinite(value) and 0.0 <= value <= 1.0
     assert row.endswith("| - | - | - | - |")
+
+
+def test_paths_under_home_are_shown_from_home(curves, tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert curves.shown_path(tmp_path / "results" / "runs.csv") == "$HOME/results/runs.csv"
+    assert curves.shown_path(tmp_path.parent / "elsewhere.csv") == str(tmp_path.parent / "elsewhere.csv")

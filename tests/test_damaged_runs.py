@@ -265,3 +265,23 @@ def test_a_benchmark_run_whose_checkpoint_does_not_load_starts_over(tmp_path, ca
     assert "checkpoint.zip does not load (BadZipFile" in out and "the run starts over from the beginning" in out
     assert result["status"] == "done" and result["rows"] == reference["rows"]
     assert len(list(folder.glob("checkpoint.zip.damaged-*"))) == 1
+
+
+@pytest.mark.parametrize(("content", "problem"), DAMAGED_SPEC_FILES)
+@pytest.mark.parametrize("report_only", [False, True], ids=["run", "report-only"])
+def test_a_damaged_benchmark_spec_file_is_named_and_nothing_written(tmp_path, capsys, content, problem, report_only):
+    """A benchmark run whose ``spec.json`` is damaged is refused like a run of other settings, naming the file and
+    the damage (a binary file or a JSON list ended in a traceback), before anything is written."""
+    from sb3_saeir.benchmark import main as benchmark_main
+
+    out = tmp_path / "bench"
+    path = out / "runs" / "mappo" / f"{TASK}_s1" / "spec.json"
+    path.parent.mkdir(parents=True)
+    path.write_bytes(content)
+    before = snapshot(out)
+    argv = ["--algos", "mappo", "--tasks", TASK, "--seeds", "1", "-n", "900", "--n-games", "2", "--out", str(out)]
+    status = benchmark_main(argv + (["--report-only"] if report_only else []))
+    err = capsys.readouterr().err
+    assert status == 2 and "Traceback" not in err, err
+    assert f"{path} is damaged ({problem}" in err and "its settings are unknown" in err, err
+    assert snapshot(out) == before

@@ -22,6 +22,7 @@ from sb3_saeir.run import (
     RunLog,
     RunSpec,
     read_rows,
+    read_spec_file,
     same_row,
     spec_differences,
     spec_record,
@@ -82,12 +83,11 @@ def stored_spec_differences(folder: Path, record: dict[str, Any]) -> list[str]:
     :param folder: the run's folder
     :param record: :func:`spec_record` of the planned run
     """
-    spec_path = folder / SPEC_FILE
-    if spec_path.is_file():
-        try:
-            stored = json.loads(spec_path.read_text())
-        except json.JSONDecodeError:
-            return [f"{SPEC_FILE} is unreadable"]
+    try:
+        stored = read_spec_file(folder)
+    except ConfigError as error:  # not JSON, not text, or not an object of settings: what it says, then what follows
+        return [f"{str(error).split(';')[0]}: its settings are unknown"]
+    if stored is not None:
         return spec_differences(stored, record)
     if folder.is_dir() and any(folder.iterdir()):
         return [f"no {SPEC_FILE} (made by an older version): its settings are unknown"]

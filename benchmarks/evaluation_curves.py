@@ -36,6 +36,7 @@ from sb3_saeir.benchmark import read_rows
 from sb3_saeir.benchmark.reports import format_steps
 from sb3_saeir.config import OneLineParser
 from sb3_saeir.envs import get_task_spec
+from sb3_saeir.run import SEGMENTS_FILE
 
 sys.path.insert(0, str(Path(__file__).parent))
 from random_baseline import random_scores
@@ -189,7 +190,7 @@ def wall_time(folder: Path) -> tuple[float, float] | None:
     :param folder: the run's folder
     :raises ReportError: a ``segments.json`` that is not a list of segments
     """
-    path = folder / "segments.json"
+    path = folder / SEGMENTS_FILE
     if not path.is_file():
         return None
     try:

@@ -7,7 +7,7 @@ cd "$HOME/saeir-nav-full"
 export PYTHONPATH="$HOME/saeir-nav-full"
 PY=/work/main/.venv/bin/python
 OUT="$HOME/saeir-results/nav-full"
-COMMON=(--seeds 1 --eval-episodes 200 --num-threads 1 --jobs 1 --rliable)
+COMMON=(--seeds 1 --eval-episodes 200 --num-threads "${NAV_THREADS:-1}" --jobs 1 --rliable)
 echo "$(date -u +%FT%TZ) $1 start (commit $(git rev-parse --short HEAD))"
 case "$1" in
   # N=3: 20M env steps = 60M agent-steps, evaluations every 2M env steps = 6M agent-steps

@@ -40,6 +40,9 @@ import numpy as np
 from sb3_saeir.benchmark import read_rows
 from sb3_saeir.benchmark.statistics import main_metric
 
+sys.path.insert(0, str(Path(__file__).parent))
+from evaluation_curves import shown_path
+
 Curve = tuple[np.ndarray, np.ndarray]  # (env steps, main metric in its unit), sorted by env steps
 
 
@@ -306,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--window", type=float, default=250_000, help="env steps per row of the bonus tables")
     args = parser.parse_args(argv)
     curves = seed_curves(gather(args.runs))
-    lines = [f"Runs: {', '.join(f'`{p}`' for p in args.runs)}", ""]
+    lines = [f"Runs: {', '.join(f'`{shown_path(p)}`' for p in args.runs)}", ""]
     for task in sorted({task for task, _ in curves}):
         by_algo = {algo: seeds for (t, algo), seeds in curves.items() if t == task}
         lines += task_section(task, by_algo, args.at, args.thresholds)

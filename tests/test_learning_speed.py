@@ -88,12 +88,20 @@ def test_report_end_to_end(speed, tmp_path, capsys):
                                              for s in (1, 2, 3)})  # fmt: skip
     assert speed.main([str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--out", str(tmp_path / "out")]) == 0
     text = (tmp_path / "out" / "learning_speed.md").read_text()
+    assert text.startswith(f"Runs: `{tmp_path / 'a.csv'}`, `{tmp_path / 'b.csv'}`\n")  # outside the home folder
     assert (tmp_path / "out" / "curves_seeds.png").stat().st_size > 0
     assert "| 0.5M | s1 10, s2 20, s3 30 | 20.0 |" in text  # per seed and the mean
     assert "| 10 | s1 0.5M, s2 0.5M, s3 0.5M |" in text  # saeir_ppo's first reaches of 10%
     assert "| 20 | s1 > 2M, s2 > 2M, s3 > 2M |" in text  # mappo never reaches 20%: censored
     # saeir_ppo reaches 10% earlier on every seed pair: the smallest one-sided p with 3 against 3
     assert "| saeir_ppo (n=3) | mappo (n=3) | first reach of 10 | | 100% | 0.050 (one-sided) |" in text
+
+
+def test_runs_under_the_home_folder_are_shown_as_home(speed, tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    write_runs(tmp_path / "a.csv", "saeir_ppo", {1: [(0, 0.0), (500_000, 0.1)]})
+    assert speed.main([str(tmp_path / "a.csv"), "--out", str(tmp_path / "out")]) == 0
+    assert (tmp_path / "out" / "learning_speed.md").read_text().startswith("Runs: `$HOME/a.csv`\n")
 
 
 def test_same_run_in_two_files_is_refused(speed, tmp_path):

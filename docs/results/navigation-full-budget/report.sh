@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Issue 36's report, rebuilt from the run folders under $HOME/saeir-results/nav-full (queue.sh), run from the
 # repository root of main: copies each run's small files (never checkpoints or progress.csv), writes runs.csv,
-# table.md and aggregate.md of the finished runs of both benchmark folders together, evaluation_curves.md and
-# curves_full.png (every run, finished or not), and learning_speed.md with the SAEIR bonus per 2M env steps.
+# table.md and aggregate.md of the finished runs, evaluation_curves.md and curves_full.png, and learning_speed.md
+# with the SAEIR bonus per 2M env steps. The rows come from each run's own evaluations.csv: a benchmark folder's
+# runs.csv holds only the runs of the command that last wrote it (SAEIR_PPO's command replaced MAPPO's N=3 rows).
 # usage: bash docs/results/navigation-full-budget/report.sh
 set -euo pipefail
 RESULTS="${NAV_RESULTS:-$HOME/saeir-results/nav-full}"
@@ -19,7 +20,7 @@ for run in "$RESULTS"/cn-sparse-n*/runs/*/*_s*; do
 done
 
 # runs.csv, table.md, aggregate.md: the finished runs (a done.json in their folder), as the benchmark reports them
-"$PY" - "$DOCS" "$RESULTS"/cn-sparse-n3/runs.csv "$RESULTS"/cn-sparse-n4/runs.csv <<'EOF'
+"$PY" - "$DOCS" "$DOCS"/runs/*/*/evaluations.csv <<'EOF'
 import sys
 from pathlib import Path
 
@@ -28,8 +29,7 @@ from sb3_saeir.benchmark import pairwise_markdown, read_rows, rliable_markdown, 
 docs = Path(sys.argv[1])
 rows = [row for path in sys.argv[2:] for row in read_rows(Path(path))]
 finished = [
-    row for row in rows
-    if (docs / "runs" / row["algo"] / f"{row['task']}_s{int(row['seed'])}" / "done.json").is_file()
+    row for path in sorted(sys.argv[2:]) if (Path(path).parent / "done.json").is_file() for row in read_rows(Path(path))
 ]
 write_rows(docs / "runs.csv", finished)
 finished = read_rows(docs / "runs.csv")  # what the byte-for-byte test re-reports
@@ -39,9 +39,9 @@ print(f"{len(finished)} rows of finished runs ({len(rows)} in all)")
 EOF
 
 "$PY" benchmarks/evaluation_curves.py --out "$DOCS" \
-    "$RESULTS"/cn-sparse-n3/runs.csv "$RESULTS"/cn-sparse-n4/runs.csv --random-episodes 1000 \
+    "$DOCS"/runs.csv --random-episodes 1000 \
     --reference cn-sparse-n3:mappo=64.43 cn-sparse-n3:saeir_ppo=65.48 cn-sparse-n4:mappo=64.26
 
-"$PY" benchmarks/learning_speed.py --out "$DOCS" "$RESULTS"/cn-sparse-n3/runs.csv "$RESULTS"/cn-sparse-n4/runs.csv \
+"$PY" benchmarks/learning_speed.py --out "$DOCS" "$DOCS"/runs.csv \
     --at 2000000 10000000 20000000 --thresholds 10 20 30 --window 2000000 \
     --bonus "$RESULTS"/cn-sparse-n3/runs/saeir_ppo/cn-sparse-n3_s1

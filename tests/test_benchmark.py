@@ -95,6 +95,22 @@ def test_report_leaves_unfinished_runs_out_of_the_table(finished, tmp_path, caps
     assert not (copy / "table.md").exists() and (copy / "curves.png").is_file()
 
 
+def test_report_of_fewer_runs_names_the_folders_it_leaves_out(finished, tmp_path, capsys):
+    """A command with one method or seed rewrites runs.csv with its runs only, and names the folder's other runs."""
+    out, argv = finished
+    copy = tmp_path / "bench"
+    shutil.copytree(out, copy)
+    one_method = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "2", *TINY_ARGV]
+    assert main([*one_method, "--out", str(copy), "--report-only"]) == 0
+    printed = capsys.readouterr().out
+    left_out = "mappo/cn-sparse-n3_s1, saeir_ppo/cn-sparse-n3_s1, saeir_ppo/cn-sparse-n3_s2"
+    assert f"only this command's runs (1); also in {copy / 'runs'}: {left_out} (to report them together" in printed
+    assert {(r["algo"], r["seed"]) for r in read_csv(copy / "runs.csv")} == {("mappo", "2")}
+    assert main([*argv, "--out", str(copy), "--report-only"]) == 0  # all of them: nothing to name
+    assert "also in" not in capsys.readouterr().out
+    assert read_csv(copy / "runs.csv") == read_csv(out / "runs.csv")
+
+
 def test_rerun_skips_finished_runs(finished, capsys):
     out, argv = finished
     before = (out / "runs.csv").read_text()

@@ -30,7 +30,9 @@ an edited config), it refuses with one line per run naming what differs, and exi
 or ``--rerun-changed`` to move those folders aside (``<folder>.replaced-<UTC time>``, nothing is deleted) and train
 them again. A larger ``-n`` is a different run too, not an extension: learning-rate and clip schedules depend on the
 total budget, the shorter run's final (off-grid) evaluation would sit in the curve, and a finished run keeps no
-checkpoint. ``runs.csv``, ``table.md`` and ``curves.png`` hold only runs whose spec matches the command.
+checkpoint. ``runs.csv``, ``table.md`` and ``curves.png`` hold only runs whose spec matches the command, and only
+the command's runs: when the folder holds others (an earlier command's methods or seeds), the command names them;
+``--report-only`` with all their methods, tasks and seeds reports them together.
 
 **Resuming loses nothing.** Re-running the same command skips finished runs and resumes interrupted ones from their
 checkpoint, taken at the start of every rollout after the first. A checkpoint is the SB3 model zip with one more

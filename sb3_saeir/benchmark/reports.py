@@ -241,7 +241,26 @@ def report(out: Path, specs: list[RunSpec], use_rliable: bool = False) -> list[d
         for name in ("table.md", "aggregate.md"):
             (out / name).unlink(missing_ok=True)
     plot_curves(rows, out / "curves.png")
+    others = other_run_folders(out, specs)
+    if others:  # a later command with other methods or seeds must not read as a report of the whole folder
+        print(
+            f"runs.csv, table.md and curves.png hold only this command's runs ({len(specs)}); also in {out / 'runs'}: "
+            f"{', '.join(others)} (to report them together, give --report-only all their methods, tasks and seeds)"
+        )
     return rows
+
+
+def other_run_folders(out: Path, specs: list[RunSpec]) -> list[str]:
+    """The run folders under ``out/runs`` that are not runs of ``specs`` (``algo/task_sSEED``, sorted).
+
+    :param out: the benchmark folder
+    :param specs: the command's runs
+    """
+    own = {run_folder(out, spec) for spec in specs}
+    runs = out / "runs"
+    # a run folder is runs/<algo>/<task>_s<seed>, with its spec.json
+    folders = sorted(spec_file.parent for spec_file in runs.glob(f"*/*/{SPEC_FILE}")) if runs.is_dir() else []
+    return [f"{folder.parent.name}/{folder.name}" for folder in folders if folder not in own]
 
 
 def unfinished_runs(out: Path, specs: list[RunSpec], rows: list[dict[str, Any]]) -> dict[tuple[str, str, int], int]:

@@ -100,6 +100,8 @@ def test_report_of_fewer_runs_names_the_folders_it_leaves_out(finished, tmp_path
     out, argv = finished
     copy = tmp_path / "bench"
     shutil.copytree(out, copy)
+    replaced = copy / "runs" / "mappo" / "cn-sparse-n3_s1.replaced-20261204T000000Z"  # moved aside: no run to report
+    shutil.copytree(copy / "runs" / "mappo" / "cn-sparse-n3_s1", replaced)
     one_method = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "2", *TINY_ARGV]
     assert main([*one_method, "--out", str(copy), "--report-only"]) == 0
     printed = capsys.readouterr().out

@@ -5,6 +5,7 @@ one run.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -251,16 +252,20 @@ def report(out: Path, specs: list[RunSpec], use_rliable: bool = False) -> list[d
 
 
 def other_run_folders(out: Path, specs: list[RunSpec]) -> list[str]:
-    """The run folders under ``out/runs`` that are not runs of ``specs`` (``algo/task_sSEED``, sorted).
+    """The run folders under ``out/runs`` that are not runs of ``specs`` (``algo/task_sSEED``, sorted); folders moved
+    aside by ``--rerun-changed`` (``<task>_s<seed>.replaced-<UTC time>``) are not runs any command reports.
 
     :param out: the benchmark folder
     :param specs: the command's runs
     """
     own = {run_folder(out, spec) for spec in specs}
-    runs = out / "runs"
     # a run folder is runs/<algo>/<task>_s<seed>, with its spec.json
-    folders = sorted(spec_file.parent for spec_file in runs.glob(f"*/*/{SPEC_FILE}")) if runs.is_dir() else []
-    return [f"{folder.parent.name}/{folder.name}" for folder in folders if folder not in own]
+    folders = sorted(spec_file.parent for spec_file in (out / "runs").glob(f"*/*/{SPEC_FILE}"))
+    return [
+        f"{folder.parent.name}/{folder.name}"
+        for folder in folders
+        if folder not in own and re.fullmatch(r".+_s-?\d+", folder.name)
+    ]
 
 
 def unfinished_runs(out: Path, specs: list[RunSpec], rows: list[dict[str, Any]]) -> dict[tuple[str, str, int], int]:

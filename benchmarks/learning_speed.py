@@ -3,8 +3,8 @@ seed first reaches a success threshold (and a one-sided test of whether one meth
 under the success curve, the pairwise table and every seed's curve.
 
     python benchmarks/learning_speed.py --out docs/results/football-stage-f \\
-        docs/results/football-probe/runs.csv $HOME/saeir-results/stage-f/3v1/runs.csv \\
-        $HOME/saeir-results/stage-f/counterattack/runs.csv \\
+        docs/results/football-probe/runs.csv docs/results/football-stage-f/3v1/runs.csv \\
+        docs/results/football-stage-f/counterattack/runs.csv \\
         --bonus $HOME/saeir-results/stage-f/3v1/runs/saeir_ppo/grf-3v1-keeper_s2
 
 Each argument is a benchmark's ``runs.csv`` (``python -m sb3_saeir.benchmark``); rows of the same (method, task,

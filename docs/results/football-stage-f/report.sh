@@ -23,7 +23,7 @@ copy_bonus() {  # $1: a finished SAEIR_PPO run folder, $2: its folder here
         echo "\`python -m sb3_saeir.benchmark --entropy-plot ${1/#$HOME/\$HOME}\`"
         echo "(\`bonus.png\` is the \`system_entropy.png\` it wrote into the run folder):"
         echo
-        "$PY" -m sb3_saeir.benchmark --entropy-plot "$1" 2>/dev/null | grep '^|'
+        "$PY" -m sb3_saeir.benchmark --entropy-plot "$1" | grep '^|'
     } > "$2/bonus.md"
     cp "$1/system_entropy.png" "$2/bonus.png"
     "$PY" - "$1" "$2/bonus_by_250k.md" <<'EOF'

@@ -5,7 +5,8 @@ changes the buffer's advantages and returns or the parameters after two updates,
 reorders float sums stays within the stated tolerance.
 
 The arrays in ``tests/data/golden_*.npz`` and the model zips ``tests/data/golden_*.zip`` were written by this file
-run as a script (``python tests/test_golden.py``) on version 0.1.0a0 (commit 54974f9, before the core redesign).
+run as a script (then ``python tests/test_golden.py``; today ``python -m tests.test_golden --write`` from the repository
+root) on version 0.1.0a0 (commit 54974f9, before the core redesign).
 Do not regenerate them to make a test pass: a difference is a behaviour change to explain.
 """
 
@@ -21,6 +22,7 @@ import torch as th
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.intrinsic import ElignCallback, RNDCallback
+from tests.run_folders import SAVED_ARRAYS_ATOL, SAVED_ARRAYS_RTOL
 
 DATA = pathlib.Path(__file__).parent / "data"
 N_GAMES = 2
@@ -28,8 +30,6 @@ N_STEPS = 25  # the paper's rollout length (a padded last chunk of 5 steps with 
 ITERATIONS = 2
 SEED = 3
 TINY_POLICY = {"hidden_size": 16}
-# Bit-identical is expected; 1e-6 (relative 1e-5) leaves room for a reordering of float sums.
-ATOL, RTOL = 1e-6, 1e-5
 # SAEIR_PPO's group critic rebuilds its hyperedges by a top-k of cosine similarities at every step, so a last-bit change
 # of a parameter can swap two nearly tied agents of an edge and move the second iteration's arrays by orders more
 # than the change itself. Since 0.2.0a0 the update skips the padded rows of the last chunk and sums the rest in
@@ -51,7 +51,7 @@ PER_SCALE_ARRAYS = ("values", "advantages", "returns")
 def assert_matches_golden(method: str, arrays: dict[str, np.ndarray], expected: Any) -> None:
     """Compare a golden run's arrays with the stored ones at the method's tolerance (and SAEIR_PPO's group critic at
     :data:`GROUP_CRITIC_TOLERANCE`)."""
-    atol, rtol = METHOD_TOLERANCES.get(method, (ATOL, RTOL))
+    atol, rtol = METHOD_TOLERANCES.get(method, (SAVED_ARRAYS_ATOL, SAVED_ARRAYS_RTOL))
     for key in expected.files:
         got, stored = arrays[key], expected[key]
         if method != "saeir_ppo":
@@ -176,5 +176,5 @@ def write_golden_data() -> None:
 
 if __name__ == "__main__":
     if "--write" not in sys.argv:
-        sys.exit("Usage: python tests/test_golden.py --write   (overwrites tests/data/golden_*; see the module docstring)")
+        sys.exit("Usage: python -m tests.test_golden --write   (overwrites tests/data/golden_*; see the module docstring)")
     write_golden_data()

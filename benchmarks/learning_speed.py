@@ -141,8 +141,13 @@ def _millions(steps: float) -> str:
 
 
 def success_table(curves: dict[int, Curve], checkpoints: list[float], title: str) -> list[str]:
-    """Per checkpoint: every seed's value, the mean and (with 3 or more seeds) the IQM and its bootstrap interval."""
+    """Per checkpoint: every seed's value, the mean and (with 3 or more seeds) the IQM and its bootstrap interval.
+
+    The IQM trims a quarter of the seeds from each end, rounded down, so with 3 seeds it trims none and equals the mean;
+    the table then says so under it.
+    """
     lines = [f"| env steps | per seed ({title}) | mean | IQM [95% CI] |", "|---|---|---|---|"]
+    iqm_untrimmed = False
     for checkpoint in checkpoints:
         values = {seed: value_at(curve, checkpoint) for seed, curve in curves.items()}
         known = [v for v in values.values() if v is not None]
@@ -152,7 +157,14 @@ def success_table(curves: dict[int, Curve], checkpoints: list[float], title: str
         if len(known) >= 3 and len(known) == len(values):
             estimate, low, high = iqm_interval(known)
             iqm = f"{estimate:.1f} [{low:.1f}, {high:.1f}]"
+            iqm_untrimmed = iqm_untrimmed or len(known) < 4
         lines.append(f"| {_millions(checkpoint)} | {per_seed} | {mean} | {iqm} |")
+    if iqm_untrimmed:
+        lines += [
+            "",
+            "With 3 seeds the IQM trims none of them (a quarter of 3 rounds down to 0), so it equals the mean; its "
+            "interval is the bootstrap's over the seeds.",
+        ]
     return lines
 
 

@@ -90,11 +90,24 @@ def test_report_end_to_end(speed, tmp_path, capsys):
     text = (tmp_path / "out" / "learning_speed.md").read_text()
     assert text.startswith(f"Runs: `{tmp_path / 'a.csv'}`, `{tmp_path / 'b.csv'}`\n")  # outside the home folder
     assert (tmp_path / "out" / "curves_seeds.png").stat().st_size > 0
-    assert "| 0.5M | s1 10, s2 20, s3 30 | 20.0 |" in text  # per seed and the mean
+    assert "| 0.5M | s1 10, s2 20, s3 30 | 20.0 | 20.0 [" in text  # per seed, the mean and the IQM (untrimmed)
+    assert text.count("With 3 seeds the IQM trims none of them") == 2  # under each method's table
     assert "| 10 | s1 0.5M, s2 0.5M, s3 0.5M |" in text  # saeir_ppo's first reaches of 10%
     assert "| 20 | s1 > 2M, s2 > 2M, s3 > 2M |" in text  # mappo never reaches 20%: censored
     # saeir_ppo reaches 10% earlier on every seed pair: the smallest one-sided p with 3 against 3
     assert "| saeir_ppo (n=3) | mappo (n=3) | first reach of 10 | | 100% | 0.050 (one-sided) |" in text
+
+
+def test_iqm_trims_a_quarter_from_four_seeds_and_none_from_three(speed):
+    """The IQM against the hand-computed trimmed mean: 4 seeds drop their lowest and highest, 3 seeds drop none."""
+    four = {s: (np.array([0.0, 1e6]), np.array([0.0, value])) for s, value in zip((1, 2, 3, 4), (0, 10, 20, 90))}
+    table = "\n".join(speed.success_table(four, [1_000_000], "Success %"))
+    assert "| 1M | s1 0, s2 10, s3 20, s4 90 | 30.0 | 15.0 [" in table  # (10 + 20) / 2 against the mean 30
+    assert "trims none" not in table
+    three = {s: four[s] for s in (2, 3, 4)}
+    table = "\n".join(speed.success_table(three, [1_000_000], "Success %"))
+    assert "| 1M | s2 10, s3 20, s4 90 | 40.0 | 40.0 [" in table
+    assert "With 3 seeds the IQM trims none of them" in table
 
 
 def test_runs_under_the_home_folder_are_shown_as_home(speed, tmp_path, monkeypatch):

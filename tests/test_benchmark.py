@@ -219,6 +219,27 @@ def test_aggregate_intervals_repeat():
     assert "| cn-sparse-n3 | mappo | 5.50 Coverage % |" in first
 
 
+def test_aggregate_says_when_the_iqm_trims_no_seed():
+    """The IQM trims a quarter of the seeds from each end, rounded down: with 3 seeds none (the mean, and a line under
+    the table says so), with 4 seeds one from each end (hand-computed: the mean of the middle two)."""
+    three = [
+        {"algo": "mappo", "task": "cn-sparse-n3", "seed": seed, "timesteps": 100, "coverage_rate_mean": value}
+        for seed, value in zip((1, 2, 3), (0.10, 0.20, 0.90))
+    ]
+    text = benchmark.rliable_markdown(three, reps=200)
+    assert "| cn-sparse-n3 | mappo | 40.00 Coverage % |" in text  # (10 + 20 + 90) / 3: nothing trimmed
+    note = (
+        "With fewer than 4 seeds the IQM trims none of them (a quarter of the seeds, rounded down, from each end), so it "
+        "equals the mean, and its interval is the bootstrap's over the seeds (one seed: its own value): cn-sparse-n3 "
+        "mappo (n=3).\n"
+    )
+    assert text.endswith(note)
+    four = [*three, {**three[0], "seed": 4, "coverage_rate_mean": 0.30}]
+    text = benchmark.rliable_markdown(four, reps=200)
+    assert "| cn-sparse-n3 | mappo | 25.00 Coverage % |" in text  # sorted 10, 20, 30, 90: mean of 20 and 30
+    assert "trims none" not in text
+
+
 def test_pairwise_differences_worked_examples():
     """Five seeds each, every A seed above every B seed (a tie inside A): A above B in 100% of the seed pairs, exact
     two-sided p = 2 / C(10, 5) = 2 / 252. Interleaved 1, 3, 5 against 2, 4, 6: A above B in 3 of 9 pairs, and

@@ -20,7 +20,8 @@ before it starts, so every evaluation of a run plays the same ``--eval-episodes`
 - ``table.md``: mean ± std over seeds at the final evaluation, best method in bold (the paper's Table 1 layout);
 - ``curves.png``: one panel per task, mean line and std band per method, x axis in env steps (game steps);
 - ``aggregate.md`` with ``--rliable``: IQM and 95% stratified-bootstrap confidence intervals of the final main metric
-  (the bootstrap is seeded: reporting the same runs again writes the same intervals), then every pair of methods: the
+  (the bootstrap is seeded: reporting the same runs again writes the same intervals; below 4 seeds the IQM trims none
+  and equals the mean, which a line under the table says), then every pair of methods: the
   difference of the means, how often one ends above the other over the pairs of seeds, and the two-sided Mann-Whitney
   U test's p-value, to tell which differences are larger than the seed spread.
 

@@ -80,6 +80,7 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_see
     from rliable import metrics
 
     lines = ["| Task | Method | IQM | 95% CI |", "|---|---|---|---|"]
+    untrimmed: list[str] = []  # "<task> <algo> (n=<seeds>)" of the methods with fewer than 4 seeds
     # rliable's StratifiedBootstrap draws its resamples from NumPy's global generator (it ignores random_state): seed
     # that one for the call and give the caller's state back afterwards.
     global_state = np.random.get_state()
@@ -91,9 +92,27 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_see
                 scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps
             )
             lines += _aggregate_lines(task, title, scores, estimates, intervals)
+            untrimmed += [f"{task} {algo} (n={len(seeds)})" for algo, seeds in sorted(values.items()) if len(seeds) < 4]
     finally:
         np.random.set_state(global_state)
+    if untrimmed:
+        lines += ["", _untrimmed_iqm_note(untrimmed)]
     return "\n".join(lines) + "\n"
+
+
+def _untrimmed_iqm_note(untrimmed: list[str]) -> str:
+    """The line under the IQM table when some method has fewer than 4 seeds: the IQM trims a quarter of the seeds from
+    each end, rounded down, so below 4 seeds it trims none and equals the mean.
+
+    :param untrimmed: ``"<task> <algo> (n=<seeds>)"`` for each such method
+    :return: the line, naming those methods
+    """
+    return (
+        "With fewer than 4 seeds the IQM trims none of them (a quarter of the seeds, rounded down, from each end), so it "
+        "equals the mean, and its interval is the bootstrap's over the seeds (one seed: its own value): "
+        + ", ".join(untrimmed)
+        + "."
+    )
 
 
 def mann_whitney(first: list[float], second: list[float], max_splits: int = 200_000) -> tuple[float, float]:

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from sb3_saeir.benchmark import read_rows
-from sb3_saeir.benchmark.statistics import main_metric
+from sb3_saeir.benchmark.statistics import iqm_trims_none, main_metric
 
 sys.path.insert(0, str(Path(__file__).parent))
 from evaluation_curves import shown_path
@@ -157,7 +157,7 @@ def success_table(curves: dict[int, Curve], checkpoints: list[float], title: str
         if len(known) >= 3 and len(known) == len(values):
             estimate, low, high = iqm_interval(known)
             iqm = f"{estimate:.1f} [{low:.1f}, {high:.1f}]"
-            iqm_untrimmed = iqm_untrimmed or len(known) < 4
+            iqm_untrimmed = iqm_untrimmed or iqm_trims_none(len(known))
         lines.append(f"| {_millions(checkpoint)} | {per_seed} | {mean} | {iqm} |")
     if iqm_untrimmed:
         lines += [

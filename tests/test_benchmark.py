@@ -240,6 +240,17 @@ def test_aggregate_says_when_the_iqm_trims_no_seed():
     assert "trims none" not in text
 
 
+def test_iqm_trims_none_below_four_seeds():
+    """Against SciPy's trimmed mean at a quarter (rliable's IQM): on distinct, skewed values it equals the plain mean
+    exactly when nothing is trimmed."""
+    from scipy.stats import trim_mean
+
+    for n_seeds in range(1, 10):
+        values = np.arange(n_seeds, dtype=float) ** 3  # (n_seeds,) skewed, so any trim moves the mean
+        untrimmed = bool(np.isclose(trim_mean(values, 0.25), values.mean()))
+        assert benchmark.statistics.iqm_trims_none(n_seeds) == untrimmed, n_seeds
+
+
 def test_pairwise_differences_worked_examples():
     """Five seeds each, every A seed above every B seed (a tie inside A): A above B in 100% of the seed pairs, exact
     two-sided p = 2 / C(10, 5) = 2 / 252. Interleaved 1, 3, 5 against 2, 4, 6: A above B in 3 of 9 pairs, and

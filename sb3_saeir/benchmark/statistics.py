@@ -92,12 +92,24 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_see
                 scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps
             )
             lines += _aggregate_lines(task, title, scores, estimates, intervals)
-            untrimmed += [f"{task} {algo} (n={len(seeds)})" for algo, seeds in sorted(values.items()) if len(seeds) < 4]
+            untrimmed += [
+                f"{task} {algo} (n={len(seeds)})" for algo, seeds in sorted(values.items()) if iqm_trims_none(len(seeds))
+            ]
     finally:
         np.random.set_state(global_state)
     if untrimmed:
         lines += ["", _untrimmed_iqm_note(untrimmed)]
     return "\n".join(lines) + "\n"
+
+
+def iqm_trims_none(n_seeds: int) -> bool:
+    """Whether the IQM of ``n_seeds`` values trims none of them: it cuts a quarter of the values from each end, rounded
+    down (rliable's ``aggregate_iqm``, SciPy's ``trim_mean`` at 0.25), so below 4 seeds it is the plain mean.
+
+    :param n_seeds: how many values the IQM is taken over
+    :return: ``True`` when nothing is trimmed
+    """
+    return int(0.25 * n_seeds) == 0
 
 
 def _untrimmed_iqm_note(untrimmed: list[str]) -> str:

@@ -85,6 +85,16 @@ def side_by_side(kind: str, units: int, processes: int) -> float:
     return max(max(times), time.perf_counter() - start)
 
 
+def speed_up(processes: int, alone: float, wall: float) -> float:
+    """``processes x alone / wall``: the work done side by side per second, over the work one process does alone.
+
+    :param processes: how many processes ran the job together
+    :param alone: wall seconds of one job alone
+    :param wall: wall seconds until all ``processes`` jobs had finished
+    """
+    return processes * alone / wall
+
+
 def calibrate(kind: str, seconds: float) -> int:
     """Units of ``kind`` that take about ``seconds`` alone."""
     one = max(timed(kind, 1), 1e-6)
@@ -105,7 +115,7 @@ def main() -> None:
         alone = side_by_side(kind, units, 1)
         for processes in args.processes:
             wall = alone if processes == 1 else side_by_side(kind, units, processes)
-            print(f"{kind:>9} {processes:>9} {wall:7.2f} {processes * alone / wall:8.2f}", flush=True)
+            print(f"{kind:>9} {processes:>9} {wall:7.2f} {speed_up(processes, alone, wall):8.2f}", flush=True)
 
 
 if __name__ == "__main__":

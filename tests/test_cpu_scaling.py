@@ -1,9 +1,16 @@
-"""benchmarks/cpu_scaling.py: the same job in 1 and 2 processes started together, and the speed-up it prints."""
+"""benchmarks/cpu_scaling.py: the same job in 1 and 2 processes started together, and the speed-up it prints.
+
+The figures themselves depend on the machine and on what else runs (pytest-xdist runs other tests beside this one),
+so the tests check the table's shape, the formula, and that the printed speed-up follows from the printed times; never
+a bound on the speed-up (see the script's docstring: it measures the machine, on an idle one).
+"""
 
 import re
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 SCRIPT = Path(__file__).parent.parent / "benchmarks" / "cpu_scaling.py"
 
@@ -23,10 +30,23 @@ def test_prints_one_row_per_kind_and_process_count():
         ("matmul", "1"),
         ("matmul", "2"),
     ]
-    for _, processes, wall, speed_up in rows:
-        assert float(wall) > 0
-        assert 0 < float(speed_up) <= int(processes) * 1.5  # alone: exactly 1
-    assert all(float(speed_up) == 1.0 for _, processes, _, speed_up in rows if processes == "1")
+    alone = {kind: float(wall) for kind, processes, wall, _ in rows if processes == "1"}
+    for kind, processes, wall, printed in rows:
+        assert float(wall) > 0 and float(printed) > 0
+        # the printed speed-up is k x alone / wall of the printed times, up to their rounding to 0.01 s
+        k, rounding = int(processes), 0.005
+        low = k * (alone[kind] - rounding) / (float(wall) + rounding)
+        high = k * (alone[kind] + rounding) / (float(wall) - rounding)
+        assert low - 0.005 <= float(printed) <= high + 0.005
+    assert all(float(printed) == 1.0 for _, processes, _, printed in rows if processes == "1")
+
+
+def test_speed_up_closed_form(load_benchmark_script):
+    cpu_scaling = load_benchmark_script("cpu_scaling")
+    assert cpu_scaling.speed_up(1, 3.0, 3.0) == 1.0
+    assert cpu_scaling.speed_up(2, 3.0, 3.0) == 2.0  # two independent cores: twice the work in the same time
+    assert cpu_scaling.speed_up(2, 3.0, 6.0) == 1.0  # one core shared: no gain
+    assert cpu_scaling.speed_up(4, 2.0, 5.0) == pytest.approx(1.6)
 
 
 def test_work_units_scale_the_time(load_benchmark_script):

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from sb3_saeir.benchmark import read_rows
-from sb3_saeir.benchmark.statistics import iqm_trims_none, main_metric
+from sb3_saeir.benchmark.statistics import iqm_interval_estimates, iqm_trims_none, main_metric, seeded_global_numpy
 
 sys.path.insert(0, str(Path(__file__).parent))
 from evaluation_curves import shown_path
@@ -119,16 +119,9 @@ def earlier_test(first: list[float], second: list[float]) -> tuple[float, float]
 
 def iqm_interval(values: list[float], reps: int = 2000, bootstrap_seed: int = 0) -> tuple[float, float, float]:
     """IQM of one method's values over seeds and its 95% bootstrap interval (rliable, as ``aggregate.md``)."""
-    from rliable import library as rly
-    from rliable import metrics
-
-    global_state = np.random.get_state()
-    np.random.seed(bootstrap_seed)  # rliable resamples from NumPy's global generator
-    try:
-        scores = {"m": np.array(values, dtype=float)[:, None]}  # (n_seeds, 1 task)
-        estimates, intervals = rly.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps)
-    finally:
-        np.random.set_state(global_state)
+    scores = {"m": np.array(values, dtype=float)[:, None]}  # (n_seeds, 1 task)
+    with seeded_global_numpy(bootstrap_seed):
+        estimates, intervals = iqm_interval_estimates(scores, reps)
     return float(estimates["m"][0]), float(intervals["m"][0, 0]), float(intervals["m"][1, 0])
 
 

@@ -138,3 +138,22 @@ def test_bonus_windows_average_per_window_in_env_steps(speed, tmp_path):
     lines = speed.bonus_windows(run, window=2.0)
     assert lines[2].startswith("| 0M-2e-06M | 2.00e-01 | 4.00e-01 |")
     assert lines[3].startswith("| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 |")
+
+
+def test_iqm_interval_is_the_aggregate_tables(speed):
+    """One method's IQM and interval are the ones the benchmark's ``aggregate.md`` prints for the same seeds (same
+    bootstrap, same seed), and the caller's NumPy global state is given back."""
+    from sb3_saeir.benchmark import rliable_markdown
+
+    values = [0.05, 0.45, 0.64, 0.62, 0.30]
+    rows = [
+        {"algo": "saeir_ppo", "task": "grf-3v1-keeper", "seed": seed, "timesteps": 10, "success_mean": value}
+        for seed, value in enumerate(values, start=1)
+    ]
+    np.random.seed(7)
+    estimate, low, high = speed.iqm_interval([100 * v for v in values], reps=300)
+    assert np.random.randint(10**9) == np.random.RandomState(7).randint(10**9)
+    assert f"| grf-3v1-keeper | saeir_ppo | {estimate:.2f} Success % | [{low:.2f}, {high:.2f}] |" in rliable_markdown(
+        rows, reps=300
+    )
+    assert estimate == pytest.approx(np.mean(sorted(100 * v for v in values)[1:4]))  # 5 seeds: drops one from each end

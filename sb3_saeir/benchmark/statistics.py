@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -76,30 +78,50 @@ def rliable_markdown(rows: list[dict[str, Any]], reps: int = 2000, bootstrap_see
     :param bootstrap_seed: seed of the resampling, so that reporting the same runs twice writes the same intervals
     :return: the Markdown table of ``aggregate.md``
     """
-    from rliable import library as rly
-    from rliable import metrics
-
     lines = ["| Task | Method | IQM | 95% CI |", "|---|---|---|---|"]
     untrimmed: list[str] = []  # "<task> <algo> (n=<seeds>)" of the methods with fewer than 4 seeds
-    # rliable's StratifiedBootstrap draws its resamples from NumPy's global generator (it ignores random_state): seed
-    # that one for the call and give the caller's state back afterwards.
-    global_state = np.random.get_state()
-    np.random.seed(bootstrap_seed)
-    try:
+    with seeded_global_numpy(bootstrap_seed):  # one stream for all tasks, in the order of final_scores
         for task, (title, values) in final_scores(final_rows(rows)).items():
             scores = {algo: np.array(seeds)[:, None] for algo, seeds in values.items()}  # (n_seeds, 1 task) per method
-            estimates, intervals = rly.get_interval_estimates(
-                scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps
-            )
+            estimates, intervals = iqm_interval_estimates(scores, reps)
             lines += _aggregate_lines(task, title, scores, estimates, intervals)
             untrimmed += [
                 f"{task} {algo} (n={len(seeds)})" for algo, seeds in sorted(values.items()) if iqm_trims_none(len(seeds))
             ]
-    finally:
-        np.random.set_state(global_state)
     if untrimmed:
         lines += ["", _untrimmed_iqm_note(untrimmed)]
     return "\n".join(lines) + "\n"
+
+
+@contextmanager
+def seeded_global_numpy(seed: int) -> Iterator[None]:
+    """Seed NumPy's global generator for the block and give the caller's state back afterwards.
+
+    rliable's ``StratifiedBootstrap`` draws its resamples from that generator (it ignores ``random_state``), so this
+    is what makes the intervals repeat: the same runs reported twice give the same intervals.
+
+    :param seed: the seed of the block's draws
+    """
+    global_state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(global_state)
+
+
+def iqm_interval_estimates(scores: dict[str, np.ndarray], reps: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """IQM of each method's scores and its 95% stratified-bootstrap interval (rliable), drawn from NumPy's global
+    generator: call it inside :func:`seeded_global_numpy`.
+
+    :param scores: per method, its scores of shape ``(n_seeds, n_tasks)``
+    :param reps: bootstrap resamples per interval
+    :return: per method, the IQM (shape ``(1,)``), and per method the interval's ends (shape ``(2, 1)``: low, high)
+    """
+    from rliable import library as rly
+    from rliable import metrics
+
+    return rly.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps)
 
 
 def iqm_trims_none(n_seeds: int) -> bool:

@@ -2,11 +2,14 @@
 
 import csv
 import json
+import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -332,10 +335,29 @@ def free_port():
         return sock.getsockname()[1]
 
 
+def stop_process_group(group: int, grace_s: float = 20.0) -> None:
+    """SIGTERM to every process of ``group``, then SIGKILL to those still there after ``grace_s`` seconds."""
+    for sig, wait_s in ((signal.SIGTERM, grace_s), (signal.SIGKILL, 10.0)):
+        try:
+            os.killpg(group, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.time() + wait_s
+        while time.time() < deadline:
+            try:
+                os.killpg(group, 0)  # raises once no process of the group is left
+            except ProcessLookupError:
+                return
+            time.sleep(0.2)
+
+
 @pytest.fixture
 def ray_head():
+    """A one-node Ray cluster of its own: started in a new session, so that its processes (GCS, raylet, workers) form
+    one process group, and stopped by stopping that group alone. ``ray stop`` would stop every Ray process on the
+    machine, a user's cluster or a second test run's included."""
     ray_bin = Path(sys.executable).parent / "ray"
-    port = free_port()
+    port, client_port = free_port(), free_port()
     temp = Path(tempfile.mkdtemp(prefix="ray_"))  # short: Ray's unix socket paths must stay under 108 characters
     command = [
         str(ray_bin),
@@ -345,6 +367,8 @@ def ray_head():
         "127.0.0.1",
         "--port",
         str(port),
+        "--ray-client-server-port",
+        str(client_port),
         "--num-cpus",
         "2",
         "--include-dashboard",
@@ -353,14 +377,16 @@ def ray_head():
         str(temp),
         "--disable-usage-stats",
     ]
-    subprocess.run(command, check=True, capture_output=True, timeout=180)
+    starter = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
     try:
+        _, stderr = starter.communicate(timeout=180)
+        assert starter.returncode == 0, stderr.decode()
         yield f"127.0.0.1:{port}"
     finally:
         import ray
 
         ray.shutdown()
-        subprocess.run([str(ray_bin), "stop", "--force"], capture_output=True, timeout=120)
+        stop_process_group(starter.pid)  # the head's daemons keep the group of `ray start`, whose pid names it
         shutil.rmtree(temp, ignore_errors=True)
 
 

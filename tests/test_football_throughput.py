@@ -38,12 +38,15 @@ def test_tree_memory_counts_the_children(football_throughput):
     import time
 
     # a child holding about 200 MB: the tree's peak is above this process's own resident memory by about that much
-    child = subprocess.Popen(
-        [sys.executable, "-c", "import time; b = bytearray(200 * 2**20); b[::4096] = b'x' * len(b[::4096]); time.sleep(30)"]
+    holder = (
+        "import time; b = bytearray(200 * 2**20); b[::4096] = b'x' * len(b[::4096]); print('ready', flush=True); "
+        "time.sleep(60)"
     )
+    child = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, text=True)
     try:
+        assert child.stdout is not None and child.stdout.readline() == "ready\n"  # its pages are touched: resident
         with football_throughput.TreeMemory(interval=0.05) as memory:
-            time.sleep(3.0)
+            time.sleep(1.0)
         import psutil
 
         own_mb = psutil.Process().memory_info().rss / 2**20

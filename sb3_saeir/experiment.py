@@ -332,6 +332,12 @@ def claimed_run_folder(log_folder: str | Path, algo: str, task: str) -> Iterator
     :return: the run's folder, created and empty
     """
     parent = Path(log_folder) / algo
+    in_the_way = next((path for path in (parent, *parent.parents) if path.exists() and not path.is_dir()), None)
+    if in_the_way is not None:
+        raise ConfigError(
+            f"-f {log_folder}: {in_the_way} is a file, where a folder of the runs ({parent}) must go; move that file "
+            "away or give another -f."
+        )
     created = [parent, *parent.parents]
     created = created[: next(index for index, folder in enumerate(created) if folder.is_dir())]  # deepest first
     parent.mkdir(parents=True, exist_ok=True)
@@ -363,6 +369,11 @@ def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | 
     :raises ~sb3_saeir.config.ConfigError: naming what is missing and the fix
     """
     if isinstance(resume, Path):
+        if resume.is_file():
+            raise ConfigError(
+                f"--resume {resume}: a file, not a run folder; give the folder that holds the run (such as "
+                f"logs/{algo}/{task}_1, with rl_model_<steps>_steps.zip and {task}/), or a run's number."
+            )
         if not resume.is_dir():
             raise ConfigError(
                 f"--resume {resume}: no such folder; give a run's number, or the path of a run folder such as "

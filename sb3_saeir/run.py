@@ -14,7 +14,8 @@ inside of a run folder is the same for both (``docs/guide/training.md``, "The ru
   on the same episodes (the eval env is reseeded before each);
 - ``progress.csv`` (SB3's logger, continued over resumes), ``games.monitor.csv`` (one row per finished game),
   ``segments.json`` (wall time of each process that worked on the run), ``resume.log`` (what each resume did);
-- ``<task>.zip`` and ``done.json`` when finished (the final model; total wall time and agent-steps).
+- ``<task>.zip`` and ``done.json`` when finished (the final model, with the resume state of its last step, from
+  which a larger budget continues: "Training a run longer"; total wall time and agent-steps).
 
 Run folders written before this layout resume too: a benchmark run's ``checkpoint.zip`` is read as its newest
 checkpoint, and a ``train`` run without ``spec.json`` is compared through its ``args.yml`` and ``config.yml``.
@@ -27,6 +28,7 @@ import errno
 import inspect
 import io
 import json
+import shutil
 import signal
 import sys
 import threading
@@ -43,15 +45,17 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import KVWriter
 from stable_baselines3.common.utils import configure_logger
 
-from sb3_saeir.common.atomic import atomic_write_text, keep_damaged
+from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
 from sb3_saeir.common.run_state import (
     RunCheckpointCallback,
     SegmentClock,
+    capture_resume_state,
     checkpoint_problem,
     describe_resume,
     is_exact,
     load_resume_state,
     progress_logger,
+    save_checkpoint,
     utc_stamp,
 )
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
@@ -76,9 +80,13 @@ SPEC_SETTINGS = {
     "eval_episodes": "--eval-episodes",
     "params": "-params",
 }
+# What a smaller budget than a run's record is told (a larger one trains the run longer).
+SHORTER = " (a run is not trained shorter; a larger -n trains it longer)"
 # Config keys a resume does not compare: mirrored by a setting (n_envs: --n-games, n_timesteps: -n), or a setting of
 # the machine, not of what is trained (compile).
 UNCOMPARED_CONFIG_KEYS = ("n_envs", "n_timesteps", "compile")
+# -params keys that may change at a resume: settings of the machine (docs/guide/training.md).
+RESUME_FREE_PARAMS = ("compile",)
 # errno values of a write that failed for want of space.
 NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
@@ -152,7 +160,8 @@ def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: t
     """What differs between a run's stored settings record and the planned run, as ``"<setting> <old> -> <new>"``.
 
     The package version is recorded, not compared; config keys set by ``-params`` are reported once, as ``-params``;
-    :data:`UNCOMPARED_CONFIG_KEYS` are not compared.
+    :data:`UNCOMPARED_CONFIG_KEYS` are not compared; a larger budget than the record's is no difference (the run is
+    trained longer: :func:`extended_budget`), a smaller one is.
 
     :param stored: the run's ``spec.json`` (or :func:`legacy_train_record`)
     :param planned: :func:`spec_record` of the planned run
@@ -163,10 +172,12 @@ def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: t
         for key in ("algo", "task", "seed")
         if stored.get(key) != planned[key]
     ]
+    compared = {**stored, "params": _compared_params(stored.get("params"))}
+    planned_compared = {**planned, "params": _compared_params(planned["params"])}
     differences += [
-        f"{flag} {_show(stored.get(key))} -> {_show(planned[key])}"
+        f"{flag} {_show(compared.get(key))} -> {_show(planned_compared[key])}{_shorter(key, stored)}"
         for key, flag in SPEC_SETTINGS.items()
-        if stored.get(key) != planned[key]
+        if compared.get(key) != planned_compared[key] and not (key == "n_timesteps" and extended_budget(stored, planned[key]))
     ]
     old_options, new_options = stored.get("options") or {}, planned.get("options") or {}
     differences += [
@@ -182,6 +193,49 @@ def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: t
         if old_config.get(key) != new_config.get(key)
     ]
     return differences
+
+
+def _compared_params(params: Any) -> Any:
+    """``-params`` as a resume compares them: without :data:`RESUME_FREE_PARAMS` (``None`` stays ``None``)."""
+    if not isinstance(params, dict):
+        return params
+    return {key: value for key, value in params.items() if key not in RESUME_FREE_PARAMS}
+
+
+def _shorter(key: str, stored: dict[str, Any]) -> str:
+    """:data:`SHORTER` for a budget that differs from a record's budget (it is smaller: a larger one is no difference)."""
+    budget = stored.get(key)
+    return SHORTER if key == "n_timesteps" and isinstance(budget, (int, float)) and not isinstance(budget, bool) else ""
+
+
+def extended_budget(stored: dict[str, Any], n_timesteps: int) -> int | None:
+    """The budget a run's record holds when ``n_timesteps`` is larger (the run is to be trained longer, an extension),
+    ``None`` when it is not larger (or the record holds no budget).
+
+    :param stored: the run's settings record
+    :param n_timesteps: the budget of the command
+    """
+    budget = stored.get("n_timesteps")
+    if isinstance(budget, (int, float)) and not isinstance(budget, bool) and n_timesteps > budget:
+        return int(budget)
+    return None
+
+
+def extension_record(stored: dict[str, Any], n_timesteps: int, finished: dict[str, Any] | None) -> dict[str, Any]:
+    """A run's settings record after an extension to ``n_timesteps``: the new budget, and the extension appended to
+    its ``extensions`` (the budget before, the new one, when, and the ``done.json`` of the shorter run if it finished).
+
+    :param stored: the run's settings record before
+    :param n_timesteps: the new budget
+    :param finished: the shorter run's ``done.json`` (``None``: it had not finished)
+    """
+    record = json.loads(json.dumps(stored))
+    extension = {"from": record["n_timesteps"], "to": n_timesteps, "at": utc_stamp(), "finished": finished}
+    record["n_timesteps"] = n_timesteps
+    if isinstance(record.get("config"), dict) and "n_timesteps" in record["config"]:
+        record["config"]["n_timesteps"] = n_timesteps
+    record["extensions"] = [*record.get("extensions", []), extension]
+    return record
 
 
 def read_spec_file(folder: Path) -> dict[str, Any] | None:
@@ -388,13 +442,19 @@ def saved_timesteps(path: Path) -> int | None:
         return None
 
 
-def newest_loading_checkpoint(folder: Path) -> tuple[Path | None, list[tuple[Path, str]]]:
+def newest_loading_checkpoint(folder: Path, final_model: Path | None = None) -> tuple[Path | None, list[tuple[Path, str]]]:
     """The newest checkpoint of a run folder that loads (``None``: none does), and the newer ones that do not, with
     why (:func:`~sb3_saeir.common.run_state.checkpoint_problem`).
 
     :param folder: the run's folder
+    :param final_model: the run's final model (``<task>.zip``): a resume point too when it holds a resume state (a
+        finished run's, written before its final evaluation) and is newer than the checkpoints
     """
     checkpoints = checkpoint_steps(folder)
+    if final_model is not None and final_model.is_file() and not checkpoint_problem(final_model):
+        steps = saved_timesteps(final_model)
+        if steps is not None and steps not in checkpoints and load_resume_state(final_model) is not None:
+            checkpoints[steps] = final_model
     skipped: list[tuple[Path, str]] = []
     for steps in sorted(checkpoints, reverse=True):
         problem = checkpoint_problem(checkpoints[steps])
@@ -406,8 +466,11 @@ def newest_loading_checkpoint(folder: Path) -> tuple[Path | None, list[tuple[Pat
 
 def keep_damaged_checkpoints(skipped: list[tuple[Path, str]]) -> None:
     """Move checkpoints that do not load aside (``<name>.damaged-<UTC time>``; nothing deleted), so that the run's
-    next checkpoints do not sit beside them."""
+    next checkpoints do not sit beside them (a folder in a checkpoint's name is renamed aside whole)."""
     for path, _ in skipped:
+        if path.is_dir():
+            path.rename(unused_name(path, "damaged"))
+            continue
         keep_damaged(path)
         path.unlink()
 
@@ -573,6 +636,8 @@ class Run:
         self.target_timesteps = spec.n_timesteps
         self.log = log if log is not None else RunLog(self.folder)
         self.resume: ResumePoint | None = None
+        self.stored: dict[str, Any] | None = None
+        self.extended_from: int | None = None
         self.skipped: list[tuple[Path, str]] = []
         self.experiment: Experiment | None = None
         self.checkpoints: RunCheckpointCallback | None = None
@@ -587,38 +652,70 @@ class Run:
         """Whether the run is finished (``done.json``)."""
         return (self.folder / DONE_FILE).is_file()
 
-    def check_resumable(self, n_timesteps: int) -> None:
-        """Find where ``--resume`` continues the run (:meth:`open`); refuse a run with no checkpoint that loads, or a
-        finished one.
+    @property
+    def final_model(self) -> Path:
+        """The run's final model, ``<task>.zip`` (with the resume state of its last step: :meth:`train`)."""
+        return self.folder / f"{self.spec.task}.zip"
 
-        :param n_timesteps: the command's budget
+    def check_budget(self, stored: dict[str, Any]) -> None:
+        """Compare the command's budget with the run's record: the same, or larger (the run is trained longer, an
+        extension: :attr:`extended_from` is the record's budget, and :meth:`write_spec` records the extension); a
+        smaller one is refused.
+
+        :param stored: the run's settings record
+        :raises ~sb3_saeir.config.ConfigError: for a smaller budget
+        """
+        budget = stored.get("n_timesteps")
+        if isinstance(budget, (int, float)) and self.spec.n_timesteps < budget:
+            raise ConfigError(
+                f"--resume: -n {self.spec.n_timesteps:,} is smaller than the budget of the run in {self.folder} "
+                f"({int(budget):,} agent-steps): a run is not shortened. Give -n {int(budget)} (or more, to train it "
+                "longer)."
+            )
+        self.stored = stored
+        self.extended_from = extended_budget(stored, self.spec.n_timesteps)
+
+    def check_resumable(self, stored: dict[str, Any]) -> None:
+        """Find where ``--resume`` continues the run (:meth:`open`: its newest checkpoint that loads, or its final
+        model); refuse a smaller budget than the record's (:meth:`check_budget`), a run with nothing to resume from,
+        or a finished one whose budget the command does not raise.
+
+        :param stored: the run's settings record (:func:`stored_record`)
         :raises ~sb3_saeir.config.ConfigError: naming the run and the fix
         """
-        folder = self.folder
-        if not checkpoint_steps(folder):
-            raise ConfigError(
-                f"--resume: {folder} has no checkpoint ({CHECKPOINT_NAME.format(steps='<steps>')}): it ran without "
-                "--save-freq and was not stopped with Ctrl-C. Continue its model with -i instead (a fresh state)."
-            )
+        self.check_budget(stored)
+        folder, final = self.folder, self.final_model
         point = self.open()
+        if point is None and not self.skipped:
+            pattern = CHECKPOINT_NAME.format(steps="<steps>")
+            if final.is_file():
+                raise ConfigError(
+                    f"--resume: {folder} has no checkpoint ({pattern}) and its final model {final.name} holds no resume "
+                    f"state (written by an older version): continue that model with -i {final} instead (a fresh state)."
+                )
+            raise ConfigError(
+                f"--resume: {folder} has no checkpoint ({pattern}) and no final model: nothing to resume from (a run "
+                "writes checkpoints with --save-freq and on Ctrl-C). Start a new run without --resume."
+            )
         if point is None:
             problems = "; ".join(f"{path.name}: {why}" for path, why in self.skipped)
-            raise ConfigError(
-                f"--resume: no checkpoint of {folder} loads ({problems}); continue its model with -i if it has one, or "
-                "start a new run without --resume."
-            )
+            fix = f"continue its model with -i {final}" if final.is_file() else "start a new run without --resume"
+            raise ConfigError(f"--resume: no checkpoint of {folder} loads ({problems}); {fix}.")
         if point.state is None:
             raise ConfigError(
                 f"--resume: {point.checkpoint} has no resume state (written by an older version): continue it with -i instead."
             )
-        final = folder / f"{self.spec.task}.zip"
         final_steps = saved_timesteps(final) if final.is_file() else None
-        if self.is_done or (final_steps is not None and final_steps >= point.total_timesteps(n_timesteps)):
-            raise ConfigError(f"--resume: {folder} is finished ({final.name} at {final_steps or 0:,} agent-steps).")
+        target = point.total_timesteps(self.spec.n_timesteps)
+        if point.steps >= target or (final_steps is not None and final_steps >= target):
+            raise ConfigError(
+                f"--resume: {folder} is finished ({final.name} at {final_steps or point.steps:,} agent-steps, its budget "
+                f"{self.spec.n_timesteps:,}); give a larger -n to train it longer."
+            )
 
     def check_settings(self, stored: dict[str, Any], by_path: bool) -> None:
         """Refuse to continue the run with other settings than its record's (one line per setting; ``-f`` is not
-        compared for a run given by its folder's path).
+        compared for a run given by its folder's path; a larger budget is an extension, :meth:`check_budget`).
 
         :param stored: the run's settings record (:func:`stored_record`)
         :param by_path: the run was given by its folder's path (``--resume FOLDER``)
@@ -634,8 +731,12 @@ class Run:
             )
 
     def write_spec(self) -> None:
-        """Write ``spec.json`` (unless the folder has one), ``<task>/config.yml`` and ``<task>/args.yml``."""
+        """Write ``spec.json`` (unless the folder has one), ``<task>/config.yml`` and ``<task>/args.yml``; for an
+        extension (:meth:`check_budget`), record it in ``spec.json`` (:func:`extension_record`) and keep the shorter
+        run's final model as ``<task>_<steps>_steps.zip`` (its ``done.json`` goes into the record)."""
         self.folder.mkdir(parents=True, exist_ok=True)
+        if self.extended_from is not None and self.stored is not None:
+            self._record_extension(self.stored)
         if not (self.folder / SPEC_FILE).is_file():
             atomic_write_text(self.folder / SPEC_FILE, json.dumps(spec_record(self.spec), indent=2, sort_keys=True) + "\n")
         params_path = self.folder / self.spec.task
@@ -643,15 +744,29 @@ class Run:
             params_path.mkdir(exist_ok=True)
             save_run_config(params_path, self.spec.resolved_config(), self.command)
 
+    def _record_extension(self, stored: dict[str, Any]) -> None:
+        done_path, final = self.folder / DONE_FILE, self.final_model
+        finished = json.loads(done_path.read_text()) if done_path.is_file() else None
+        if finished is not None and final.is_file():
+            steps = saved_timesteps(final)
+            kept = final.with_name(f"{self.spec.task}_{steps}_steps.zip")
+            if not kept.exists():
+                shutil.copy2(final, kept)
+        record = extension_record(stored, self.spec.n_timesteps, finished)
+        done_path.unlink(missing_ok=True)  # first: a run killed before the new record is a run not yet finished
+        atomic_write_text(self.folder / SPEC_FILE, json.dumps(record, indent=2, sort_keys=True) + "\n")
+        self.log(f"trained longer: budget {self.extended_from:,} -> {self.spec.n_timesteps:,} agent-steps")
+        self.stored, self.extended_from = record, None
+
     # ------------------------------------------------------------------------------------------------ start
     def open(self) -> ResumePoint | None:
-        """Find where the run continues: its newest checkpoint that loads (:attr:`resume`; ``None``: the run starts
-        from the beginning). The newer ones that do not load are :attr:`skipped`; :meth:`start` names them in the log
-        and moves them aside. Nothing is written here.
+        """Find where the run continues: its newest checkpoint that loads, or its final model if that is newer and
+        holds a resume state (:attr:`resume`; ``None``: the run starts from the beginning). The newer ones that do not
+        load are :attr:`skipped`; :meth:`start` names them in the log and moves them aside. Nothing is written here.
 
         :return: the resume point
         """
-        checkpoint, skipped = newest_loading_checkpoint(self.folder)
+        checkpoint, skipped = newest_loading_checkpoint(self.folder, self.final_model)
         self.skipped = skipped
         self.resume = ResumePoint(checkpoint, load_resume_state(checkpoint), tuple(skipped)) if checkpoint else None
         return self.resume
@@ -781,6 +896,9 @@ class Run:
         model = experiment.model
         resume = self.resume
         remaining = self.target_timesteps - model.num_timesteps if resume is not None else self.spec.n_timesteps
+        # the state at the last step, before the final evaluation: the final model carries it, so that a larger budget
+        # continues the run exactly (as an uninterrupted run with that budget would go on from here)
+        end_state = resume.state if resume is not None and remaining <= 0 else None
         try:
             if remaining > 0:
                 if resume is None and self.evaluator is not None:
@@ -793,12 +911,14 @@ class Run:
                         progress_bar=self.output.progress_bar,
                         reset_num_timesteps=resume is None and not self.continue_model,
                     )
+                if checkpoints.stopped_at is None:
+                    end_state = capture_resume_state(model, checkpoints.extras)
             if checkpoints.stopped_at is None and self.evaluator is not None:
                 rows = self.evaluator.rows
                 if not rows or rows[-1]["timesteps"] < model.num_timesteps:
                     self.evaluator.init_callback(model)
                     self.evaluator.evaluate()  # the final evaluation
-            return self._finish()
+            return self._finish(end_state)
         except OSError as error:
             if error.errno not in NO_SPACE_ERRNOS:
                 raise
@@ -825,11 +945,17 @@ class Run:
         finally:
             signal.signal(signal.SIGINT, previous)
 
-    def _finish(self) -> Path:
-        """Save ``<task>.zip``; when the budget is reached, write ``done.json`` and drop the kept checkpoints."""
+    def _finish(self, end_state: dict[str, Any] | None) -> Path:
+        """Save ``<task>.zip`` (with ``end_state``, the resume state of its last step, when there is one); when the
+        budget is reached, write ``done.json`` and drop the kept checkpoints (the final model is the resume point of a
+        larger budget)."""
         assert self.experiment is not None and self.experiment.model is not None and self.clock is not None
         model = self.experiment.model
-        path = self.experiment.save(self.folder / f"{self.spec.task}.zip")
+        if end_state is not None:
+            path = self.final_model
+            save_checkpoint(model, path, state=end_state)
+        else:
+            path = self.experiment.save(self.final_model)
         steps = model.num_timesteps
         self.clock.tick(steps)
         if steps >= self.target_timesteps:

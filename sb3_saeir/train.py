@@ -28,6 +28,7 @@ continue a saved model with a fresh state (new run, new generators, fresh env). 
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 import time
 import zipfile
@@ -41,6 +42,7 @@ from stable_baselines3.common.utils import set_random_seed
 
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.config import (
     ALGOS,
@@ -54,6 +56,7 @@ from sb3_saeir.config import (
     count,
     one_line_warnings,
     parse_params,
+    parse_policy_kwargs,
     resolve_hyperparams,
     resume_target,
     valid_keys,
@@ -64,8 +67,10 @@ from sb3_saeir.run import Run, RunSpec, RunStoppedError, command_output, config_
 
 __all__ = [
     "CONFIG_KEYS",
+    "INTERRUPTED_EXIT_STATUS",
     "BudgetEstimate",
     "ConfigError",
+    "RunInterruptedError",
     "RunStoppedError",
     "check_arguments",
     "check_hyperparams",
@@ -76,6 +81,23 @@ __all__ = [
     "train",
     "valid_keys",
 ]
+
+
+# The exit status of a run stopped early by Ctrl-C (as shells give a command ended by SIGINT: 128 + 2).
+INTERRUPTED_EXIT_STATUS = 130
+
+
+class RunInterruptedError(KeyboardInterrupt):
+    """A run stopped early by Ctrl-C, cleanly: its checkpoint is written and ``--resume`` continues it. A
+    ``KeyboardInterrupt``, so that a Python caller sees the Ctrl-C; ``main`` exits with
+    :data:`INTERRUPTED_EXIT_STATUS`.
+
+    :param folder: the run's folder
+    """
+
+    def __init__(self, folder: Path) -> None:
+        super().__init__(f"the run in {folder} was stopped early by Ctrl-C; the same command with --resume continues it")
+        self.folder = folder
 
 
 # Command-line options that may change between a run and its --resume: they do not change what is trained.
@@ -159,34 +181,97 @@ def train(args: argparse.Namespace) -> Path:
     n_timesteps = config_budget(hyperparams)
     folder: AbstractContextManager[Path]
     stored: dict[str, Any] | None = None
-    if args.resume is not None:
-        run_folder = find_run_folder(args.log_folder, args.algo, args.task, args.resume)
-        stored = stored_record(run_folder, args.algo, args.task, legacy_train_record)
-        seed, folder = int(stored["seed"]), nullcontext(run_folder)
-    else:
-        seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else args.seed
-        folder = claimed_run_folder(args.log_folder, args.algo, args.task)
-    with folder as save_path:  # a new run's folder is removed again if the set-up fails
-        set_random_seed(seed)
-        experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
-        run = Run(
-            save_path,
-            run_spec(args, seed, n_timesteps, experiment.n_games, {}),
-            save_freq=args.save_freq if args.save_freq > 0 else sys.maxsize,  # never but on Ctrl-C
-            command={**vars(args), "seed": seed},
-            continue_model=bool(args.trained_agent),
+    locks: list[RunFolderLock] = []
+    try:
+        if args.resume is not None:
+            run_folder = find_run_folder(args.log_folder, args.algo, args.task, args.resume)
+            locks.append(RunFolderLock(run_folder).acquire())  # before anything is read for the run or written
+            stored = stored_record(run_folder, args.algo, args.task, legacy_train_record)
+            seed, folder = resumed_seed(args.seed, stored, run_folder), nullcontext(run_folder)
+        else:
+            seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
+            folder = claimed_run_folder(args.log_folder, args.algo, args.task)
+        return _train_in(folder, args, hyperparams, seed, n_timesteps, stored, locks)
+    finally:
+        for held in locks:
+            held.release()
+
+
+def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
+    """The seed of a resumed run: its record's; the command's ``--seed`` must be that seed, or left out (``None``), or
+    -1.
+
+    :param seed: the command's ``--seed`` (``None``: not given)
+    :param stored: the run's settings record
+    :param folder: the run's folder
+    :raises ~sb3_saeir.config.ConfigError: when the command gives another seed
+    """
+    stored_seed = int(stored["seed"])
+    if seed is not None and seed not in (stored_seed, DRAW_SEED):
+        raise ConfigError(
+            f"--resume: {folder} was made with --seed {stored_seed}, not --seed {seed}: a run goes on with its own seed. "
+            f"Give --seed {stored_seed} (or no --seed), or start a new run without --resume."
         )
-        if stored is not None:
-            run.check_resumable(n_timesteps)
-        build_experiment(experiment, args, run)
-        run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))
-        if stored is not None:
-            try:
-                run.check_settings(stored, by_path=isinstance(args.resume, Path))
-            except ConfigError:
-                experiment.close()
-                raise
-    announce_run(args, experiment, run, n_timesteps)
+    return stored_seed
+
+
+def _train_in(
+    folder: AbstractContextManager[Path],
+    args: argparse.Namespace,
+    hyperparams: dict[str, Any],
+    seed: int,
+    n_timesteps: int,
+    stored: dict[str, Any] | None,
+    locks: list[RunFolderLock],
+) -> Path:
+    """:func:`train` in the run's folder: the one resumed, whose lock is in ``locks``, or a new one claimed, whose lock
+    is taken here and added to ``locks`` (and removed with the folder when the set-up fails)."""
+    with folder as save_path:  # a new run's folder is removed again if the set-up fails
+        if not locks:
+            locks.append(RunFolderLock(save_path).acquire())
+        try:
+            experiment, run = _set_up(save_path, args, hyperparams, seed, n_timesteps, stored)
+        except BaseException:
+            if stored is None:  # the new run's folder goes
+                locks.pop().release()
+            raise
+    announce_run(args, experiment, run, n_timesteps, seed)
+    return _run(experiment, run, args, n_timesteps, save_path)
+
+
+def _set_up(
+    save_path: Path,
+    args: argparse.Namespace,
+    hyperparams: dict[str, Any],
+    seed: int,
+    n_timesteps: int,
+    stored: dict[str, Any] | None,
+) -> tuple[Experiment, Run]:
+    """The run's experiment, built (or its model loaded), and the run, checked against its record when resumed."""
+    set_random_seed(seed)
+    experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
+    run = Run(
+        save_path,
+        run_spec(args, seed, n_timesteps, experiment.n_games, {}),
+        save_freq=args.save_freq if args.save_freq > 0 else sys.maxsize,  # never but on Ctrl-C
+        command={**vars(args), "seed": seed},
+        continue_model=bool(args.trained_agent),
+    )
+    if stored is not None:
+        run.check_resumable(stored)
+    build_experiment(experiment, args, run)
+    run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))
+    if stored is not None:
+        try:
+            run.check_settings(stored, by_path=isinstance(args.resume, Path))
+        except ConfigError:
+            experiment.close()
+            raise
+    return experiment, run
+
+
+def _run(experiment: Experiment, run: Run, args: argparse.Namespace, n_timesteps: int, save_path: Path) -> Path:
+    """Train the run set up by :func:`_set_up`; returns its folder."""
     try:
         run.write_spec()
         start = time.time()
@@ -195,19 +280,25 @@ def train(args: argparse.Namespace) -> Path:
         output = command_output(experiment.model, args.verbose, args.progress, continued, [BudgetEstimate(n_timesteps)])
         run.start(experiment, output)
         model_path = run.train()
+        print(f"Saved {model_path} after {time.time() - start:.0f} s")
         if run.checkpoints is not None and run.checkpoints.stopped_at is not None:
             print(f"Stopped at the checkpoint {run.checkpoints.stopped_at}: the same command with --resume continues it.")
-        print(f"Saved {model_path} after {time.time() - start:.0f} s")
+            raise RunInterruptedError(save_path)
     finally:
         experiment.close()
     return save_path
 
 
-def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_timesteps: int) -> None:
-    """Say what is trained, where, and (resuming) from which checkpoint."""
+def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_timesteps: int, seed: int) -> None:
+    """Say what is trained, with which seed, where, and (resuming) from which checkpoint."""
     assert experiment.env is not None
     n_agents = experiment.env.num_envs // experiment.n_games
-    print(f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} agent-steps")
+    print(
+        f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} "
+        f"agent-steps, seed {seed}"
+    )
+    if run.extended_from is not None:
+        print(f"Training longer: budget {run.extended_from:,} -> {n_timesteps:,} agent-steps")
     if run.resume is not None:
         remaining = run.resume.total_timesteps(n_timesteps) - run.resume.steps
         print(f"Resuming {run.folder} from {run.resume.checkpoint.name}: {remaining:,} agent-steps to go")
@@ -232,6 +323,7 @@ def build_experiment(experiment: Experiment, args: argparse.Namespace, run: Run)
         env = run.make_env(experiment)
         if args.trained_agent and args.resume is None:
             experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
+            record_loaded_network(experiment, args.trained_agent, parse_params(args.params))
         else:
             experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
     except (ValueError, TypeError, KeyError, zipfile.BadZipFile, ConfigError) as error:
@@ -242,6 +334,56 @@ def build_experiment(experiment: Experiment, args: argparse.Namespace, run: Run)
         raise ConfigError(f"cannot build {args.algo} on {args.task} with these settings: {message}") from error
 
 
+def record_loaded_network(experiment: Experiment, path: str, params: dict[str, Any]) -> None:
+    """``-i``: the loaded model trains the network it was saved with. Refuse a ``-params policy_kwargs`` that asks for
+    another network (SB3's ``load`` would drop it without a word); when the config's ``policy_kwargs`` describe another
+    network than the loaded one, the run's record (``spec.json``) gets the loaded network's.
+
+    :param experiment: the experiment, its model loaded
+    :param path: the loaded model (``-i``)
+    :param params: the command's ``-params``
+    :raises ~sb3_saeir.config.ConfigError: naming the settings that cannot apply
+    """
+    assert experiment.model is not None
+    saved = dict(getattr(experiment.model, "policy_kwargs", {}) or {})
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(type(experiment.model.policy).__init__).parameters.items()
+        if parameter.default is not inspect.Parameter.empty
+    }
+
+    def differing(kwargs: dict[str, Any], keys: set[str]) -> list[str]:
+        """The keys of ``keys`` whose value (a policy default where not given) differs between ``kwargs`` and the
+        loaded network's."""
+        return [key for key in sorted(keys) if kwargs.get(key, defaults.get(key)) != saved.get(key, defaults.get(key))]
+
+    requested = parse_policy_kwargs(params["policy_kwargs"]) if "policy_kwargs" in params else {}
+    keys = differing(requested, set(requested))
+    if keys:
+        asked = ", ".join(f"{key}={show_kwarg(requested[key])}" for key in keys)
+        has = ", ".join(f"{key}={show_kwarg(saved.get(key, defaults.get(key)))}" for key in keys)
+        raise ConfigError(
+            f"-i {path}: -params policy_kwargs {asked} cannot apply to the loaded model, whose network has {has}: a "
+            "loaded model trains the network it was saved with. Drop the policy_kwargs override, or start a new run "
+            "without -i."
+        )
+    configured = parse_policy_kwargs(experiment.hyperparams.get("policy_kwargs"))
+    if differing(configured, set(configured) | set(saved)):
+        experiment.resolved_hyperparams["policy_kwargs"] = policy_kwargs_text(saved)
+
+
+def show_kwarg(value: Any) -> str:
+    """A policy keyword's value as a config writes it (``nn.Tanh`` for a torch module class)."""
+    if isinstance(value, type) and value.__module__.startswith("torch.nn"):
+        return f"nn.{value.__name__}"
+    return repr(value)
+
+
+def policy_kwargs_text(kwargs: dict[str, Any]) -> str:
+    """``policy_kwargs`` as a config writes them: ``"dict(activation_fn=nn.Tanh, hidden_size=64)"``."""
+    return "dict(" + ", ".join(f"{key}={show_kwarg(value)}" for key, value in sorted(kwargs.items())) + ")"
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="python -m sb3_saeir.train",
@@ -250,7 +392,12 @@ def make_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--algo", required=True, help=f"method: {', '.join(sorted(ALGOS))}")
     parser.add_argument("--task", "--env", dest="task", default="cn-sparse-n3", help=f"task id: {', '.join(list_tasks())}")
-    parser.add_argument("--seed", type=int, default=0, help=f"random seed, 0 .. 2**32 - 1 ({DRAW_SEED}: draw one)")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help=f"random seed, 0 .. 2**32 - 1 ({DRAW_SEED}: draw one); default 0, at --resume the run's own",
+    )
     parser.add_argument("-conf", "--conf-file", default=None, help="zoo-format YAML (default: zoo_configs/<algo>.yml)")
     parser.add_argument("-n", "--n-timesteps", type=count, default=None, help="override n_timesteps (agent-steps)")
     parser.add_argument("--n-games", type=count, default=None, help="override n_envs (number of games)")
@@ -314,12 +461,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with one_line_warnings("sb3_saeir.train"):
             return _main(args)
-    except (ConfigError, FileExistsError, MissingExtraError) as error:
+    except (ConfigError, FileExistsError, MissingExtraError, RunFolderInUseError) as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 2
     except RunStoppedError as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 1
+    except RunInterruptedError:
+        return INTERRUPTED_EXIT_STATUS
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -328,6 +477,7 @@ def _main(args: argparse.Namespace) -> int:
         from sb3_saeir.hyperparams_opt import optimize
 
         check_arguments(args)
+        args.seed = args.seed or 0
         optimize(args, resolve_hyperparams(args))
     else:
         train(args)

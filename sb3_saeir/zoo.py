@@ -466,9 +466,35 @@ def check_train_args(argv: Sequence[str]) -> None:
         return
     check_folder("-f/--log-folder", args.log_folder)
     check_folder("-tb/--tensorboard-log", args.tensorboard_log or None)
+    for item in (item for group in args.hyperparams for item in group):
+        check_zoo_param(item)
     items = [item for group in args.hyperparams for item in group if item.split(":")[0] == "n_envs"]
     entry = _load_zoo_entry(args.conf_file, args.env) if args.conf_file is not None else None
     check_n_envs(parse_params(items[-1:])["n_envs"] if items else (entry or {}).get("n_envs"))
+
+
+def check_zoo_param(item: str) -> None:
+    """Refuse a ``-params`` entry that rl-zoo3 cannot read (it evaluates each value as a Python expression, so a bare
+    word such as ``compile:bogus`` is a ``NameError`` there), naming the value and how to write a string.
+
+    :param item: one ``key:value`` entry
+    :raises ~sb3_saeir.config.ConfigError: naming the entry and the fix
+    """
+    from rl_zoo3.utils import StoreDict
+
+    from sb3_saeir.config import ConfigError
+
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("-params", nargs="+", action=StoreDict)
+    key, _, value = item.partition(":")
+    try:
+        parser.parse_args(["-params", item])
+    except Exception as error:  # rl-zoo3's eval: NameError, SyntaxError, ...
+        raise ConfigError(
+            f"-params {item}: rl-zoo3 reads each value as a Python expression and {value!r} is not one "
+            f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else 'no detail'}); write a string in "
+            f"quotes: -params \"{key}:'{value}'\"."
+        ) from None
 
 
 def parse_enjoy_args(argv: Sequence[str]) -> tuple[list[str], argparse.Namespace]:
@@ -570,13 +596,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run_train(argv: Sequence[str]) -> int:
-    from unittest import mock
-
-    import yaml
-    from rl_zoo3.exp_manager import ExperimentManager
-    from rl_zoo3.train import train
-
-    from sb3_saeir.config import ConfigError, load_yaml, resume_target
+    from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
+    from sb3_saeir.config import ConfigError, resume_target
 
     try:
         resume, argv = _mini_parser(
@@ -592,19 +613,52 @@ def _run_train(argv: Sequence[str]) -> int:
     if resume.resume is not None and not package_env:
         print("sb3_saeir.zoo: error: --resume continues runs of the package's tasks only.", file=sys.stderr)
         return 2
+    locks: list[RunFolderLock] = []
+    try:
+        return _train_holding(new_argv, resume.resume, package_env, locks)
+    except (ConfigError, RunFolderInUseError) as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
+    finally:
+        for lock in locks:
+            lock.release()
+
+
+def _train_holding(new_argv: list[str], resume_target: int | Path | None, package_env: bool, locks: list[Any]) -> int:
+    """rl-zoo3's ``train`` with the package's hooks, holding the run folder's lock (added to ``locks``): the folder
+    resumed (locked and its seed given to rl-zoo3 before it starts), or the new run's (locked before rl-zoo3 creates
+    it, so that two commands racing for one run number do not share it)."""
+    from unittest import mock
+
+    import yaml
+    from rl_zoo3.exp_manager import ExperimentManager
+    from rl_zoo3.train import train
+
+    from sb3_saeir.common.run_lock import RunFolderLock
+    from sb3_saeir.config import ConfigError, load_yaml
+
+    resumed: tuple[Path, dict[str, Any]] | None = None
+    if resume_target is not None:
+        folder, record, new_argv = claim_resumed_run(new_argv, resume_target, locks)
+        resumed = (folder, record)
+    sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
     original_setup = ExperimentManager.setup_experiment
     original_save_config = ExperimentManager._save_config
 
     def setup_or_clean_up(manager: Any) -> Any:
         """rl-zoo3's setup (config, env, model) in the run's folder (the one resumed, with its seed); a failure
         removes the folders it created and becomes one line."""
-        if resume.resume is not None:
-            _continue_in_run_folder(manager, resume.resume)
+        if resumed is not None:
+            _continue_in_run_folder(manager, *resumed)
         folders = [Path(manager.log_path).parent, Path(manager.log_path), Path(manager.save_path)]
         created = [folder for folder in folders if not folder.exists()]
+        if resumed is None:
+            locks.append(RunFolderLock(manager.save_path).acquire())
         try:
             result = original_setup(manager)
         except Exception as error:
+            if resumed is None:
+                locks.pop().release()
             remove_created_folders(created)
             raise ConfigError(f"cannot set up {manager.algo} on {manager.env_name}: {one_line(error)}") from error
         manager.saeir_config = dict(result[1]) if result is not None else {}
@@ -612,7 +666,7 @@ def _run_train(argv: Sequence[str]) -> int:
 
     def save_config_of_new_runs(manager: Any, saved_hyperparams: dict[str, Any]) -> None:
         """rl-zoo3's config.yml and args.yml, for a new run only (a resumed run keeps its own)."""
-        if resume.resume is None:
+        if resumed is None:
             original_save_config(manager, saved_hyperparams)
 
     # rl-zoo3 reads --conf-file with yaml.safe_load, which leaves 5e-4 a string: read it as the package's configs are
@@ -621,7 +675,7 @@ def _run_train(argv: Sequence[str]) -> int:
             if package_env:
                 with (
                     mock.patch.object(
-                        ExperimentManager, "learn", lambda manager, model: learn_in_run(manager, model, resume.resume)
+                        ExperimentManager, "learn", lambda manager, model: learn_in_run(manager, model, resume_target)
                     ),
                     mock.patch.object(ExperimentManager, "save_trained_model", lambda manager, model: None),
                     mock.patch.object(ExperimentManager, "setup_experiment", setup_or_clean_up),
@@ -636,20 +690,52 @@ def _run_train(argv: Sequence[str]) -> int:
     return 0
 
 
-def _continue_in_run_folder(manager: Any, resume: int | Path) -> None:
-    """Point rl-zoo3's run at the folder ``--resume`` names (the latest run, run ``N`` or a folder's path) and its
-    seed, instead of a new run folder."""
+def claim_resumed_run(argv: list[str], resume: int | Path, locks: list[Any]) -> tuple[Path, dict[str, Any], list[str]]:
+    """The run folder ``--resume`` names (the latest run, run ``N`` or a folder's path), locked (the lock added to
+    ``locks``), its settings record, and rl-zoo3's arguments with the run's own seed: a ``--seed`` other than the
+    run's (or -1, rl-zoo3's default) is refused.
+
+    :param argv: rl-zoo3's ``train`` arguments
+    :param resume: ``--resume``'s value
+    :param locks: where the folder's lock goes
+    :raises ~sb3_saeir.config.ConfigError: naming the problem and the fix
+    """
+    from rl_zoo3.utils import EnvironmentName
+
+    from sb3_saeir.common.run_lock import RunFolderLock
     from sb3_saeir.config import ConfigError
     from sb3_saeir.experiment import find_run_folder
     from sb3_saeir.run import read_spec_file
 
-    folder = find_run_folder(Path(manager.log_path).parent, manager.algo, manager.env_name.gym_id, resume)
+    options, _ = _mini_parser(
+        [
+            (["--algo"], {"default": "ppo"}),
+            (["--env"], {"default": "CartPole-v1"}),
+            (["-f", "--log-folder"], {"default": "logs"}),
+            (["--seed"], {"type": int, "default": -1}),
+        ]
+    ).parse_known_args(argv)
+    folder = find_run_folder(options.log_folder, options.algo, EnvironmentName(options.env).gym_id, resume)
+    locks.append(RunFolderLock(folder).acquire())
     try:
         record = read_spec_file(folder)
     except ConfigError as error:
         raise ConfigError(f"--resume: {error}") from None
     if record is None:
         raise ConfigError(f"--resume: {folder} has no spec.json: it is not a run of this command.")
+    seed = int(record["seed"])
+    if options.seed not in (-1, seed):
+        raise ConfigError(
+            f"--resume: {folder} was made with --seed {seed}, not --seed {options.seed}: a run goes on with its own "
+            f"seed. Give --seed {seed} (or no --seed), or start a new run without --resume."
+        )
+    seed_free = _mini_parser([(["--seed"], {"default": None})]).parse_known_args(argv)[1]
+    return folder, record, [*seed_free, "--seed", str(seed)]
+
+
+def _continue_in_run_folder(manager: Any, folder: Path, record: dict[str, Any]) -> None:
+    """Point rl-zoo3's run at the resumed run's folder (:func:`claim_resumed_run`) and its seed, instead of a new run
+    folder."""
     manager.save_path = str(folder)
     manager.params_path = f"{folder}/{manager.env_name}"
     manager.seed = int(record["seed"])
@@ -695,7 +781,7 @@ def learn_in_run(manager: Any, model: Any, resume: int | Path | None) -> None:
     run = Run(folder, spec, save_freq=save_freq, command=vars(manager.args) if hasattr(manager, "args") else {},
               continue_model=bool(manager.trained_agent), log=RunLog(folder))  # fmt: skip
     if resume is not None:
-        run.check_resumable(spec.n_timesteps)
+        run.check_resumable(manager.saeir_stored)
         run.check_settings(manager.saeir_stored, by_path=isinstance(resume, Path))
         env.append = True  # the monitor goes on with its CSV
         print(f"Resuming {folder} from {run.resume.checkpoint.name if run.resume else '?'}")

@@ -408,3 +408,107 @@ def test_one_agent_warns_that_the_group_scale_is_degenerate(tiny_kwargs, scales)
     assert len(ours) == 1 and "\n" not in ours[0] and "degenerate with 1 agent per game" in ours[0], ours
     assert "scales=('team',)" in ours[0]
     one.close()
+
+
+# ------------------------------------------------------------------------------------------------ issue 55
+RECURRENT, FEED_FORWARD = dict(hidden_size=8), dict(hidden_size=8, recurrent=False)
+KINDS = {"recurrent": RECURRENT, "feed-forward": FEED_FORWARD}
+
+
+def _saved(algo, env, tiny_kwargs, tmp_path, kind):
+    """A model zip of ``algo`` with the ``kind`` network (``"recurrent"`` or ``"feed-forward"``), and its path."""
+    path = tmp_path / f"{kind}.zip"
+    algo("MlpPolicy", env, **{**tiny_kwargs, "policy_kwargs": dict(KINDS[kind])}).save(path)
+    return path
+
+
+@pytest.mark.parametrize("algo", [SAEIR_PPO, MAPPO])
+@pytest.mark.parametrize(
+    "saved, override, words",
+    [
+        ("recurrent", dict(FEED_FORWARD), ["policy_kwargs recurrent=False does not fit", "network is recurrent"]),
+        ("feed-forward", dict(RECURRENT, recurrent=True), ["recurrent=True does not fit", "network is feed-forward"]),
+        ("feed-forward", dict(RECURRENT), ["without recurrent (so recurrent=True, the default)", "feed-forward"]),
+    ],
+    ids=["recurrent-zip", "feed-forward-zip", "feed-forward-zip-key-left-out"],
+)
+def test_load_with_policy_kwargs_of_the_other_kind(env, tiny_kwargs, tmp_path, algo, saved, override, words):
+    """The override that builds the other network was reported as a damaged zip ("is not a complete sb3-saeir model
+    zip ... save the model again")."""
+    path = _saved(algo, env, tiny_kwargs, tmp_path, saved)
+    with pytest.raises(ValueError) as error:
+        algo.load(path, env=env, custom_objects={"policy_kwargs": override})
+    one_line(error, f"{algo.__name__}.load: custom_objects", str(path), "drop the policy_kwargs override", *words)
+    assert "not a complete" not in str(error.value)
+    fitting = algo.load(path, env=env, custom_objects={"policy_kwargs": dict(KINDS[saved])})  # a positive control
+    assert fitting.policy.feed_forward == (saved == "feed-forward")
+
+
+def test_load_with_policy_kwargs_of_other_sizes(env, tiny_kwargs, tmp_path):
+    path = _saved(MAPPO, env, tiny_kwargs, tmp_path, "recurrent")
+    with pytest.raises(ValueError) as error:
+        MAPPO.load(path, env=env, custom_objects={"policy_kwargs": {"hidden_size": 16}})
+    one_line(error, "custom_objects policy_kwargs {'hidden_size': 16} do not fit", "size mismatch", "repeat the saved")
+
+
+@pytest.mark.parametrize("source", ["zip", "dict"])
+@pytest.mark.parametrize("saved, model_kind", [("recurrent", "feed-forward"), ("feed-forward", "recurrent")])
+def test_set_parameters_of_the_other_kind(env, tiny_kwargs, tmp_path, source, saved, model_kind):
+    """torch's ``load_state_dict`` error listed every GRU key over several lines."""
+    path = _saved(MAPPO, env, tiny_kwargs, tmp_path, saved)
+    parameters = str(path) if source == "zip" else MAPPO.load(path).get_parameters()
+    model = MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": dict(KINDS[model_kind])})
+    before = {name: value.clone() for name, value in model.policy.state_dict().items()}
+    with pytest.raises(ValueError) as error:
+        model.set_parameters(parameters)
+    one_line(error, f"MAPPO.set_parameters: the parameters are of a {saved} network", f"this model's network is {model_kind}")
+    after = model.policy.state_dict()
+    assert all(np.array_equal(after[name].numpy(), value.numpy()) for name, value in before.items())
+
+
+@pytest.mark.parametrize(
+    "policy_kwargs, setting",
+    [(FEED_FORWARD, "recurrent=False"), ({**RECURRENT, "recurrent_actor": False}, "recurrent_actor=False")],
+)
+@pytest.mark.parametrize("state", [np.zeros((6, 64)), np.zeros((6, 8)), [0.0]], ids=["(6, 64)", "(6, 8)", "list"])
+def test_predict_state_of_a_feed_forward_actor(env, tiny_kwargs, policy_kwargs, setting, state):
+    """SB3's feed-forward ``predict`` ignores a state (and returns it); the feed-forward actor ignored it silently,
+    while the recurrent one names a state of the wrong shape: both refuse now."""
+    model = MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": dict(policy_kwargs)})
+    with pytest.raises(ValueError) as error:
+        model.predict(np.zeros((6, 18)), state=state)
+    one_line(error, f"predict: the model's actor is feed-forward ({setting}) and has no state", "pass state=None")
+    assert model.predict(np.zeros((6, 18)), state=None)[1] is None  # a positive control
+
+
+@pytest.mark.parametrize("where", ["constructor", "load"])
+@pytest.mark.parametrize("case", ["/proc", "under a file"])
+def test_tensorboard_log_that_cannot_be_written(env, tiny_kwargs, tmp_path, where, case):
+    """SB3 failed only at ``learn``, with its raw ``FileNotFoundError`` (``/proc``) or ``NotADirectoryError``."""
+    (tmp_path / "a_file").write_text("not a folder")
+    folder, problem = {
+        "/proc": ("/proc/tb", "no file can be created in /proc"),
+        "under a file": (str(tmp_path / "a_file" / "tb"), "a_file is a file, not a folder"),
+    }[case]
+    if where == "load":
+        MAPPO("MAPPOPolicy", env, **tiny_kwargs).save(tmp_path / "model.zip")
+    with pytest.raises(ValueError) as error:
+        if where == "constructor":
+            MAPPO("MAPPOPolicy", env, tensorboard_log=folder, **tiny_kwargs)
+        else:
+            MAPPO.load(tmp_path / "model.zip", env=env, tensorboard_log=folder)
+    one_line(error, f"MAPPO: tensorboard_log={folder!r}: ", problem, "pass a folder you can write")
+    assert (tmp_path / "a_file").read_text() == "not a folder"
+
+
+def test_compile_refusal_lists_the_backends_a_user_picks(env, tiny_kwargs):
+    """The list held torch's ``*_TESTING_ONLY`` and minifier backends (a 570-character line)."""
+    with pytest.raises(ValueError) as error:
+        MAPPO("MAPPOPolicy", env, compile="fast", **tiny_kwargs)
+    one_line(error, "MAPPO: compile must be True, False or a torch.compile backend name (", "inductor", "aot_eager", "'fast'")
+    message = str(error.value)
+    assert "TESTING_ONLY" not in message and "minifier" not in message and len(message) < 200, message
+    # a positive control: a backend left out of the list is still accepted, as torch.compile accepts it
+    assert (
+        MAPPO("MAPPOPolicy", env, compile="aot_eager_decomp_partition", **tiny_kwargs).compile == "aot_eager_decomp_partition"
+    )

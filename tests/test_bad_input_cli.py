@@ -452,3 +452,65 @@ def test_zoo_enjoy_replays_without_a_window_by_default(capsys):
     assert "--no-render" in prepare_enjoy_args(["--algo", "mappo", "--env", TASK, "-n", "10"])
     assert "--no-render added" in capsys.readouterr().out
     assert prepare_enjoy_args(["--env", "CartPole-v1"]) == ["--env", "CartPole-v1"]  # other envs: untouched
+
+
+# ---------------------------------------------------------------------------------------------------- round 4 (issue 55)
+FF_KWARGS = "policy_kwargs:dict(activation_fn=nn.Tanh, hidden_size=64, critic_input='joint', recurrent=False)"
+TINY = ["--algo", "mappo", "--n-games", "2", "-n", "60", "--eval-freq", "0", "--verbose", "0", "--num-threads", "1"]
+
+
+def test_a_loaded_model_is_recorded_as_the_network_that_trains(tmp_path, capsys):
+    """``-i FF.zip`` with the packaged (recurrent) config trains the feed-forward model: spec.json says so; a
+    ``-params policy_kwargs`` that the loaded model cannot take is refused in one line, nothing left behind."""
+    import json
+
+    assert run(train_main, [*TINY, "-f", str(tmp_path), "-params", "n_steps:10", FF_KWARGS]) == 0
+    feed_forward = tmp_path / "mappo" / f"{TASK}_1" / f"{TASK}.zip"
+    assert run(train_main, [*TINY, "-f", str(tmp_path), "-params", "n_steps:10", "-i", str(feed_forward)]) == 0
+    recorded = json.loads((tmp_path / "mappo" / f"{TASK}_2" / "spec.json").read_text())["config"]["policy_kwargs"]
+    assert "recurrent=False" in recorded
+    capsys.readouterr()
+    before = snapshot(tmp_path)
+    overridden = [*TINY, "-f", str(tmp_path), "-params", "n_steps:10", "policy_kwargs:dict(recurrent=True)"]
+    assert run(train_main, [*overridden, "-i", str(feed_forward)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "-params policy_kwargs recurrent=True cannot apply to the loaded model" in line
+    assert "whose network has recurrent=False" in line
+    assert snapshot(tmp_path) == before
+
+
+def test_a_file_in_the_place_of_the_methods_folder_is_named(tmp_path, capsys):
+    (tmp_path / "mappo").write_text("not a folder")
+    before = snapshot(tmp_path)
+    assert run(train_main, [*TINY, "-f", str(tmp_path), "-params", "n_steps:10"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"{tmp_path / 'mappo'} is a file, where a folder of the runs" in line
+    assert snapshot(tmp_path) == before
+
+
+def test_resume_of_a_file_says_it_is_a_file(tmp_path, capsys):
+    path = tmp_path / "run.zip"
+    path.write_bytes(b"PK")
+    assert run(train_main, [*TINY, "-f", str(tmp_path), "--resume", str(path)]) == 2
+    assert f"--resume {path}: a file, not a run folder" in capsys.readouterr().err
+
+
+def test_a_checkpoint_that_is_a_folder_is_skipped_and_kept_aside(finished_tiny_run, tmp_path, capsys):
+    from tests.run_folders import argv, unfinished_copy
+
+    folder = unfinished_copy(finished_tiny_run, tmp_path / "logs")
+    (folder / "rl_model_870_steps.zip").mkdir()
+    assert run(train_main, argv(tmp_path / "logs", "--resume")) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "rl_model_870_steps.zip does not load (it is a folder, not a zip file)" in out
+    assert "Resuming" in out and "from rl_model_840_steps.zip" in out
+    assert [path.name.split(".damaged-")[0] for path in folder.glob("*.damaged-*")] == ["rl_model_870_steps.zip"]
+
+
+def test_compile_may_change_at_resume_in_params_too(finished_tiny_run, tmp_path, capsys):
+    from tests.run_folders import argv, unfinished_copy
+
+    unfinished_copy(finished_tiny_run, tmp_path / "logs")
+    command = argv(tmp_path / "logs", "--resume")
+    command.insert(command.index("n_epochs:2") + 1, "compile:False")
+    assert run(train_main, command) == 0, capsys.readouterr().err

@@ -208,6 +208,65 @@ def test_env_fault_named_alike_in_process_and_in_workers(fault, words):
     assert _fault_message(fault, num_cpus=2) == in_process
 
 
+class DtypeEnv(FaultyEnv):
+    """:class:`FaultyEnv` whose observation space declares ``declared`` observations; at step 2 of the games reset
+    with a seed in ``faulty_seeds``, agent_1's observation is of dtype ``returned`` (0.5 for floats, else 1)."""
+
+    def __init__(self, declared, returned, faulty_seeds=None):
+        super().__init__("dtype", faulty_seeds=faulty_seeds)
+        self.declared, self.returned = np.dtype(declared), np.dtype(returned)
+
+    def observation_space(self, agent):
+        return spaces.Box(-1, 1, (2,), self.declared)
+
+    def _obs(self):
+        obs = {a: np.zeros(2, self.declared) for a in self.possible_agents}
+        if self._now("dtype"):
+            obs["agent_1"] = np.full(2, 0.5 if self.returned.kind == "f" else 1, self.returned)
+        return obs
+
+
+def _dtype_run(declared, returned, num_cpus):
+    """The observations of 3 steps of 2 :class:`DtypeEnv` games (game 1 faulty), or the error they end in."""
+    env = make_multiagent_vec_env(lambda: DtypeEnv(declared, returned, faulty_seeds={1}), n_games=2, seed=0, num_cpus=num_cpus)
+    try:
+        env.reset()
+        return [env.step(np.zeros(env.num_envs, dtype=np.int64))[0] for _ in range(3)]
+    except Exception as error:  # compared across the two paths
+        return error
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("declared, returned", [("int64", "float64"), ("int64", "float32"), ("int32", "float16")])
+def test_observation_dtype_that_does_not_cast_is_named_alike_on_both_paths(declared, returned):
+    """Floats for an integer observation space: in this process gymnasium's ``concatenate`` raised NumPy's raw cast
+    error (a ``TypeError``), in workers the floats were truncated to 0 without a word (issue 55)."""
+    in_process, in_workers = _dtype_run(declared, returned, 0), _dtype_run(declared, returned, 2)
+    assert isinstance(in_process, ValueError), in_process
+    message = str(in_process)
+    assert "\n" not in message, message
+    for words in (
+        "faulty_v0: game 1, agent 1 (agent_1), step 2 of its episode",
+        f"an observation of dtype {returned}, its observation space declares {declared}",
+        f"declare dtype={returned}",
+    ):
+        assert words in message, message
+    assert isinstance(in_workers, ValueError) and str(in_workers) == message
+
+
+@pytest.mark.parametrize(
+    "declared, returned", [("float32", "float64"), ("float32", "int64"), ("int64", "int32"), ("float32", "bool")]
+)
+def test_observation_dtype_that_casts_is_accepted_alike(declared, returned):
+    """A positive control: what NumPy casts by its same_kind rule (float64 for float32, integers for floats) passes on
+    both paths, with the same values."""
+    in_process, in_workers = _dtype_run(declared, returned, 0), _dtype_run(declared, returned, 2)
+    assert not isinstance(in_process, Exception), in_process
+    np.testing.assert_array_equal(np.stack(in_workers), np.stack(in_process))
+    assert np.stack(in_process)[1, 3].tolist() == ([0.5, 0.5] if returned.startswith("float") else [1, 1])
+
+
 @pytest.mark.parametrize("num_cpus", [0, 2])
 def test_agents_listed_in_another_order_take_the_order_of_possible_agents(num_cpus):
     """A game listing its agents in reverse order steps as the same game listing them in possible_agents order."""

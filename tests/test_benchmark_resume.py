@@ -154,7 +154,7 @@ def snapshot(folder):
 @pytest.mark.parametrize(
     "change, message",
     [
-        (["-n", "1200"], "-n 900 -> 1200"),
+        (["-n", "600"], "-n 900 -> 600 (a run is not trained shorter; a larger -n trains it longer)"),
         (["--eval-episodes", "3"], "--eval-episodes 2 -> 3"),
         (["-params", "n_steps:20", "n_epochs:2"], '-params {"n_epochs": 2, "n_steps": 10} -> {"n_epochs": 2, "n_steps": 20}'),
         (["--n-games", "3"], "--n-games 2 -> 3"),
@@ -184,16 +184,16 @@ def test_folder_without_spec_is_refused(tmp_path, capsys):
 
 def test_rerun_changed_moves_the_old_run_aside(tmp_path, capsys):
     tiny = ["--algos", "mappo", "--seeds", "1", "--n-games", "2", "--eval-freq", "60", "-params", "n_steps:10", "n_epochs:1"]
-    assert main([*tiny, "-n", "120", "--out", str(tmp_path)]) == 0
-    folder = run_folder(tmp_path, RunSpec("mappo", "cn-sparse-n3", 1, 120))
+    assert main([*tiny, "-n", "180", "--out", str(tmp_path)]) == 0
+    folder = run_folder(tmp_path, RunSpec("mappo", "cn-sparse-n3", 1, 180))
     old = snapshot(folder)
-    assert main([*tiny, "-n", "180", "--out", str(tmp_path), "--rerun-changed"]) == 0
+    assert main([*tiny[:-1], "n_epochs:2", "-n", "180", "--out", str(tmp_path), "--rerun-changed"]) == 0
     assert "made with other settings, moved to" in capsys.readouterr().out
     (moved,) = folder.parent.glob("cn-sparse-n3_s1.replaced-*")
     assert {path.relative_to(moved): data for path, data in snapshot(moved).items()} == {
         path.relative_to(folder): data for path, data in old.items()
     }
-    assert json.loads((folder / "spec.json").read_text())["n_timesteps"] == 180
+    assert json.loads((folder / "spec.json").read_text())["params"] == {"n_epochs": 2, "n_steps": 10}
     assert [int(row["timesteps"]) for row in read_csv(tmp_path / "runs.csv")] == [0, 60, 120, 180]
     assert "(n=1)" in (tmp_path / "table.md").read_text()
 

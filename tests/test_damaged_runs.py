@@ -257,6 +257,7 @@ def test_a_benchmark_run_whose_checkpoint_does_not_load_starts_over(tmp_path, ca
     folder = tmp_path / "damaged"
     execute_run(RunSpec(**{**spec.__dict__, "n_timesteps": 120}), str(folder))  # the spec file, and a start
     (folder / "done.json").unlink()
+    (folder / f"{TASK}.zip").unlink()  # an unfinished run: no final model
     (folder / "spec.json").write_text((tmp_path / "reference" / "spec.json").read_text())
     (folder / "checkpoint.zip").write_bytes(b"PK\x03\x04 cut short")
     capsys.readouterr()

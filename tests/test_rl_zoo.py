@@ -77,6 +77,14 @@ RESUMED = [
 ]  # fmt: skip
 
 
+def with_seed(arguments, seed):
+    """``arguments`` with ``--seed`` set to ``seed`` (``None``: left out)."""
+    arguments = list(arguments)
+    index = arguments.index("--seed")
+    del arguments[index : index + 2]
+    return arguments if seed is None else [*arguments, "--seed", seed]
+
+
 def test_zoo_train_killed_and_resumed_ends_as_uninterrupted(tmp_path):
     """``python -m sb3_saeir.zoo train --resume`` (a package task: the run is a ``Run`` in rl-zoo3's folder) after a
     SIGKILL mid-run ends with the uninterrupted run's parameters, training rows, evaluations and monitor rows."""
@@ -96,8 +104,19 @@ def test_zoo_train_killed_and_resumed_ends_as_uninterrupted(tmp_path):
     os.killpg(process.pid, signal.SIGKILL)
     process.wait()
     assert not (folder / "done.json").exists()
-    resumed = run_launcher(*RESUMED, "-f", str(tmp_path / "killed"), "--resume")
-    assert f"Resuming {folder}" in resumed.stdout
+    # a seed other than the run's is refused before anything is written; no --seed (rl-zoo3's -1) takes the run's
+    from tests.run_folders import snapshot
+
+    before = snapshot(folder)
+    other_seed = subprocess.run(
+        [sys.executable, "-m", "sb3_saeir.zoo", *with_seed(RESUMED, "5"), "-f", str(tmp_path / "killed"), "--resume"],
+        cwd=REPO, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert other_seed.returncode == 2
+    assert f"{folder} was made with --seed 0, not --seed 5" in other_seed.stderr
+    assert snapshot(folder) == before
+    resumed = run_launcher(*with_seed(RESUMED, None), "-f", str(tmp_path / "killed"), "--resume")
+    assert f"Resuming {folder}" in resumed.stdout and "Seed: 0" in resumed.stdout
     assert_same_parameters(folder / f"{TASK}.zip", reference / f"{TASK}.zip")
     rows, expected_rows = read_rows(folder / "progress.csv"), read_rows(reference / "progress.csv")
     keys = [key for key in expected_rows[0] if not key.startswith("time/") or key == "time/total_timesteps"]

@@ -141,9 +141,43 @@ def test_nothing_to_resume_is_refused(tmp_path, capsys):
     argv = ["--algo", "mappo", *SETTINGS, "-f", str(tmp_path), "-n", "120"]
     argv[argv.index("--save-freq") + 1] = "-1"
     assert train_main(argv) == 0
+    (tmp_path / "mappo" / "cn-sparse-n3_1" / "cn-sparse-n3.zip").unlink()  # no checkpoint, no final model
     argv = ["--algo", "mappo", *SETTINGS, "-f", str(tmp_path), "-n", "300", "--resume", "1"]
     argv[argv.index("--save-freq") + 1] = "-1"
     assert train_main(argv) == 2
-    assert "has no checkpoint" in capsys.readouterr().err
+    assert "has no checkpoint (rl_model_<steps>_steps.zip) and no final model" in capsys.readouterr().err
     assert train_main([*argv[:-1], "7"]) == 2
     assert "no run 7 of mappo" in capsys.readouterr().err
+
+
+def test_a_seed_other_than_the_runs_is_refused_and_no_seed_takes_the_runs(finished_tiny_run, tmp_path, capsys):
+    from tests.run_folders import argv, snapshot, unfinished_copy
+
+    folder = unfinished_copy(finished_tiny_run, tmp_path / "logs")
+    before = snapshot(folder)
+    command = argv(tmp_path / "logs", "--resume")  # the run's seed is 3
+    index = command.index("--seed")
+    command[index + 1] = "5"
+    assert train_main(command) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"{folder} was made with --seed 3, not --seed 5" in line and "Give --seed 3 (or no --seed)" in line
+    assert snapshot(folder) == before
+    command[index + 1] = "-1"  # -1 (draw one) at --resume: the run's
+    assert train_main(command) == 0
+    assert "agent-steps, seed 3" in capsys.readouterr().out
+
+
+def test_a_run_stopped_by_ctrl_c_exits_with_130(tmp_path):
+    """A script can tell a run stopped early from a finished one: 130, as shells give a command ended by SIGINT."""
+    folder = run_folder(tmp_path, "mappo")
+    process = subprocess.Popen(
+        command("mappo", tmp_path), env=child_env(), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    deadline = time.time() + TIMEOUT
+    while not checkpoints(folder):
+        assert process.poll() is None and time.time() < deadline
+        time.sleep(0.005)
+    os.kill(process.pid, signal.SIGINT)
+    stdout, _ = process.communicate(timeout=TIMEOUT)
+    assert process.returncode == 130
+    assert "Stopped at the checkpoint" in stdout.decode() and not (folder / "done.json").exists()

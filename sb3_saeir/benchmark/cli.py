@@ -23,6 +23,7 @@ from sb3_saeir.benchmark.runs import (
 )
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.config import (
     ALGOS,
     ConfigError,
@@ -59,6 +60,20 @@ def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only:
             "(to <folder>.replaced-<UTC time>, nothing deleted) and train them again"
         )
     return "\n".join(lines)
+
+
+def folders_in_use(folders: list[Path]) -> list[str]:
+    """Why each run folder that another process trains cannot be trained by this command (one refusal per folder;
+    the folders are only tried, not held: each run takes its own folder's lock when it starts)."""
+    busy = []
+    for folder in folders:
+        if not folder.is_dir():
+            continue
+        try:
+            RunFolderLock(folder).acquire().release()
+        except RunFolderInUseError as error:
+            busy.append(str(error))
+    return busy
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -264,6 +279,9 @@ def _main(args: argparse.Namespace) -> int:
     if mismatches and (args.report_only or not args.rerun_changed):
         print(refusal(out, mismatches, args.report_only), file=sys.stderr)
         return 2
+    busy = folders_in_use([run_folder(out, spec) for spec in specs]) if not args.report_only else []
+    if busy:
+        return _error(busy[0] + (f" ({len(busy) - 1} more run folders of this command are in use)" if len(busy) > 1 else ""))
     failures: list[str] = []
     if not args.report_only:
         out.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,8 @@ from typing import Any
 
 from sb3_saeir.benchmark.runs import RunSpec, ensure_spec_file, read_rows, run_folder, spec_record, write_rows
 from sb3_saeir.common.atomic import atomic_write_text
-from sb3_saeir.run import DONE_FILE, EVALUATIONS_FILE, Run, RunEvalCallback, RunLog
+from sb3_saeir.common.run_lock import RunFolderLock
+from sb3_saeir.run import DONE_FILE, EVALUATIONS_FILE, Run, RunEvalCallback, RunLog, extended_budget, read_spec_file
 
 # The benchmark checkpoints at every rollout start and keeps the newest two (one to fall back to).
 KEEP_CHECKPOINTS = 2
@@ -40,26 +41,30 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
 
     th.set_num_threads(num_threads)
     path = Path(folder)
-    ensure_spec_file(path, spec_record(spec))
-    if (path / DONE_FILE).is_file():
-        return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(path / EVALUATIONS_FILE)}
-    run = Run(
-        path,
-        spec,
-        save_freq=0,
-        keep_checkpoints=KEEP_CHECKPOINTS,
-        command=benchmark_command(spec),
-        log=RunLog(path, spec.name),
-    )
-    run.open()
-    experiment = Experiment(spec.algo, spec.task, spec.resolved_config(), seed=spec.seed, n_games=spec.n_games)
-    try:
-        experiment.build(env=run.make_env(experiment))
-        run.write_spec()
-        run.start(experiment)
-        run.train()
-    finally:
-        experiment.close()
+    with RunFolderLock(path):
+        ensure_spec_file(path, spec_record(spec))
+        stored = read_spec_file(path)
+        assert stored is not None
+        if (path / DONE_FILE).is_file() and extended_budget(stored, spec.n_timesteps) is None:
+            return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(path / EVALUATIONS_FILE)}
+        run = Run(
+            path,
+            spec,
+            save_freq=0,
+            keep_checkpoints=KEEP_CHECKPOINTS,
+            command=benchmark_command(spec),
+            log=RunLog(path, spec.name),
+        )
+        run.check_budget(stored)
+        run.open()
+        experiment = Experiment(spec.algo, spec.task, spec.resolved_config(), seed=spec.seed, n_games=spec.n_games)
+        try:
+            experiment.build(env=run.make_env(experiment))
+            run.write_spec()
+            run.start(experiment)
+            run.train()
+        finally:
+            experiment.close()
     assert run.evaluator is not None and run.clock is not None
     return {"spec": asdict(spec), "status": "done", "rows": run.evaluator.rows, "wall_s": run.clock.total_s}
 

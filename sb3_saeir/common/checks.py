@@ -79,7 +79,7 @@ def check_ranges(algo_name: str, **values: Any) -> None:
 
 def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool = False) -> None:
     """The constructor's checks on the values ``load`` sets without the constructor (``kwargs`` and
-    ``custom_objects``): ranges, booleans, ``value_loss`` and ``double_buffered``.
+    ``custom_objects``): ranges, booleans, ``value_loss``, ``double_buffered`` and ``tensorboard_log``.
 
     :param algo_name: class name for the message
     :param overrides: argument name -> value
@@ -93,6 +93,8 @@ def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool =
         check_value_loss(algo_name, overrides["value_loss"])
     if "double_buffered" in overrides:
         check_double_buffered(algo_name, overrides["double_buffered"])
+    if "tensorboard_log" in overrides:
+        check_tensorboard_log(algo_name, overrides["tensorboard_log"])
 
 
 def check_value_loss(algo_name: str, value_loss: Any) -> None:
@@ -371,14 +373,23 @@ def check_device(owner: str, device: Any, cpu_fallback: bool = True) -> None:
 
 
 def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
-    """Refuse a ``tensorboard_log`` that is an existing file (SB3 would fail only at ``learn``).
+    """Refuse a ``tensorboard_log`` that is an existing file or a folder where no file can be written (``/proc/tb``,
+    a read-only mount: the probe of :func:`~sb3_saeir.common.utils.unwritable_folder`, as ``-tb`` of the command
+    lines); SB3 would fail only at ``learn``, with the OS's error.
 
     :param algo_name: class name for the message
     :param tensorboard_log: ``tensorboard_log`` argument
     """
-    if tensorboard_log is not None and os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
+    if tensorboard_log is None:
+        return
+    if os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
         raise ValueError(
             f"{algo_name}: tensorboard_log={str(tensorboard_log)!r} is an existing file, not a folder; pass a folder path."
+        )
+    problem = unwritable_folder(tensorboard_log)
+    if problem:
+        raise ValueError(
+            f"{algo_name}: tensorboard_log={str(tensorboard_log)!r}: {problem}; pass a folder you can write (or None)."
         )
 
 
@@ -404,17 +415,95 @@ def check_save_path(algo_name: str, path: Any) -> None:
         raise ValueError(f"{algo_name}.save: {str(target)!r} exists and is not writable; save to another path.")
 
 
+# ------------------------------------------------------------------------------------------------ saved networks
+# (GRU in the actor, GRUs in the critics) -> how the messages name the network, and the policy_kwargs that build it
+_NETWORK_KINDS: dict[tuple[bool, bool], tuple[str, str]] = {
+    (True, True): ("recurrent", "recurrent=True"),
+    (False, False): ("feed-forward", "recurrent=False"),
+    (False, True): ("recurrent in the critics only", "recurrent=True, recurrent_actor=False"),
+    (True, False): ("recurrent in the actor only", "recurrent=False, recurrent_actor=True"),
+}
+
+
+class NetworkMismatchError(ValueError):
+    """Saved parameters of a recurrent network given to a feed-forward model, or the reverse
+    (:func:`check_network_kind`); :func:`model_zip_errors` says which ``load`` argument caused it.
+
+    :param message: the one line
+    :param saved: (GRU in the actor, GRUs in the critics) of the saved parameters
+    :param built: the same of the model's network
+    """
+
+    def __init__(self, message: str, saved: tuple[bool, bool], built: tuple[bool, bool]) -> None:
+        super().__init__(message)
+        self.saved = saved
+        self.built = built
+
+
+def network_recurrence(state_dict_keys: Iterable[str]) -> tuple[bool, bool]:
+    """(GRU in the actor, GRUs in the critics) of a policy, read from the keys of its state dict.
+
+    :param state_dict_keys: the keys of a :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy`'s state dict
+    """
+    keys = list(state_dict_keys)
+    actor = any(key.startswith("actor.gru.") for key in keys)
+    critics = any(key.startswith("critics.") and ".gru." in key for key in keys)
+    return actor, critics
+
+
+def describe_network(recurrence: tuple[bool, bool]) -> str:
+    """``"recurrent (recurrent=True)"``, ``"feed-forward (recurrent=False)"``, ...: a network's kind and the
+    ``policy_kwargs`` that build it.
+
+    :param recurrence: (GRU in the actor, GRUs in the critics), as :func:`network_recurrence` gives it
+    """
+    kind, settings = _NETWORK_KINDS[recurrence]
+    return f"{kind} ({settings})"
+
+
+def check_network_kind(owner: str, saved_policy: Iterable[str], policy: MultiAgentActorCriticPolicy) -> None:
+    """Refuse saved policy parameters of a recurrent network for a feed-forward model, or the reverse, before any is
+    set (torch's ``load_state_dict`` error listed every GRU key, over many lines).
+
+    :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
+    :param saved_policy: the saved policy's state dict (or its keys)
+    :param policy: the model's policy
+    :raises NetworkMismatchError: one line naming both kinds and the fix
+    """
+    saved, built = network_recurrence(saved_policy), network_recurrence(policy.state_dict())
+    if saved == built:
+        return
+    (saved_kind, saved_settings), (built_kind, built_settings) = _NETWORK_KINDS[saved], _NETWORK_KINDS[built]
+    raise NetworkMismatchError(
+        f"{owner}: the parameters are of a {saved_kind} network ({saved_settings}), this model's network is "
+        f"{built_kind} ({built_settings}); set them on a model built with policy_kwargs {saved_settings} "
+        f"({owner.split('.')[0]}.load(path) builds the saved network).",
+        saved,
+        built,
+    )
+
+
 @contextlib.contextmanager
-def model_zip_errors(algo_name: str, path: Any) -> Iterator[None]:
+def model_zip_errors(algo_name: str, path: Any, custom_objects: dict[str, Any] | None = None) -> Iterator[None]:
     """Around SB3's ``load``: the errors it raises for a file that is not a complete model zip (truncated or edited)
     become one ``ValueError`` line naming the file; the package's own ``ValueError`` (n_agents, ranges) pass through.
+    Where ``custom_objects`` replace the saved ``policy_kwargs`` and the network they build does not take the saved
+    parameters, the line names the override as the cause, not the file.
 
     :param algo_name: class name for the message
     :param path: the ``path`` argument of ``load``
+    :param custom_objects: the ``custom_objects`` argument of ``load``
     """
+    override = (custom_objects or {}).get("policy_kwargs", _NO_OVERRIDE)
     try:
         yield
+    except NetworkMismatchError as error:
+        if override is _NO_OVERRIDE:  # the zip's own policy_kwargs and parameters disagree: an edited zip
+            raise _incomplete_model_error(algo_name, path, error) from None
+        raise _override_kind_error(algo_name, path, override, error) from None
     except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
+        if override is not _NO_OVERRIDE and isinstance(error, RuntimeError) and "loading state_dict" in str(error):
+            raise _override_error(algo_name, path, override, error) from None
         raise _incomplete_model_error(algo_name, path, error) from None
     except ValueError as error:
         # SB3's own ValueErrors for a damaged zip
@@ -423,10 +512,41 @@ def model_zip_errors(algo_name: str, path: Any) -> Iterator[None]:
         raise
 
 
+_NO_OVERRIDE = object()  # model_zip_errors: no policy_kwargs in custom_objects
+
+
 def _incomplete_model_error(algo_name: str, path: Any, error: BaseException) -> ValueError:
     """One line for a model file that SB3 could not read back."""
     detail = str(error).splitlines()[0] if str(error) else "no detail"
     return ValueError(
         f"{algo_name}.load: {str(path)!r} is not a complete sb3-saeir model zip ({type(error).__name__}: {detail}); "
         "save the model again with model.save."
+    )
+
+
+def _override_kind_error(algo_name: str, path: Any, override: Any, error: NetworkMismatchError) -> ValueError:
+    """One line for ``custom_objects={"policy_kwargs": ...}`` that build a recurrent network for the saved parameters
+    of a feed-forward one, or the reverse."""
+    items = override.items() if isinstance(override, dict) else ()
+    given = {key: value for key, value in items if key in ("recurrent", "recurrent_actor")}
+    if given:
+        what = ", ".join(f"{key}={value!r}" for key, value in given.items())
+    else:
+        what = f"without recurrent (so {_NETWORK_KINDS[error.built][1]}, the default)"
+    return ValueError(
+        f"{algo_name}.load: custom_objects policy_kwargs {what} does not fit {str(path)!r}, whose network is "
+        f"{describe_network(error.saved)}; drop the policy_kwargs override, or give {_NETWORK_KINDS[error.saved][1]} "
+        "in it (custom_objects replace the saved policy_kwargs whole)."
+    )
+
+
+def _override_error(algo_name: str, path: Any, override: Any, error: RuntimeError) -> ValueError:
+    """One line for ``custom_objects={"policy_kwargs": ...}`` that build a network of other sizes than the saved one
+    (torch's ``load_state_dict`` error: its first mismatch is named)."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    detail = lines[1] if len(lines) > 1 else lines[0]
+    return ValueError(
+        f"{algo_name}.load: custom_objects policy_kwargs {override!r} do not fit the network saved in {str(path)!r} "
+        f"({detail.rstrip('. ')}); drop the policy_kwargs override, or repeat the saved policy_kwargs in it "
+        "(custom_objects replace them whole)."
     )

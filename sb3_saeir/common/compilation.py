@@ -59,18 +59,35 @@ def compile_obstacle(backend: str, device: th.device) -> str | None:
     return None
 
 
+# torch's debugging backends a user may pick to tell a compiler fault from a model fault (torch's "torch.compile
+# troubleshooting" page): listed with the backends torch lists by default. Its other debug and experimental backends
+# (the minifiers', the *_TESTING_ONLY ones, which raise on purpose, AOTAutograd's partition variants) are accepted but
+# not listed.
+DEBUG_BACKENDS = ("eager", "aot_eager")
+
+
+def listed_backends() -> list[str]:
+    """The ``torch.compile`` backends the ``compile`` refusal names: those ``torch._dynamo.list_backends()`` lists
+    (it leaves out torch's debug and experimental ones; a backend registered without tags is listed) and
+    :data:`DEBUG_BACKENDS`, sorted."""
+    return sorted({*th._dynamo.list_backends(), *DEBUG_BACKENDS})
+
+
 def check_compile_setting(owner: str, setting: Any) -> None:
     """Refuse a ``compile`` value that is not ``True``, ``False`` or a ``torch.compile`` backend name, in one line.
+
+    Every backend torch knows is accepted (``torch._dynamo.list_backends(exclude_tags=())``); the message lists those
+    of :func:`listed_backends` only.
 
     :param owner: class name for the message
     :param setting: the ``compile`` argument
     """
     if isinstance(setting, bool):
         return
-    backends = sorted(th._dynamo.list_backends(exclude_tags=()))
-    if not isinstance(setting, str) or setting not in backends:
+    if not isinstance(setting, str) or setting not in th._dynamo.list_backends(exclude_tags=()):
         raise ValueError(
-            f"{owner}: compile must be True, False or a torch.compile backend name ({', '.join(backends)}), got {setting!r}."
+            f"{owner}: compile must be True, False or a torch.compile backend name ({', '.join(listed_backends())}), "
+            f"got {setting!r}."
         )
 
 

@@ -151,6 +151,10 @@ class GameBlock:
         return slice(start, start + self.n_agents)
 
     def _write_obs(self, game: int, observations: dict[str, Any]) -> None:
+        """Copy one game's observations into its rows. The assignment casts without a check (floats into an integer
+        array are truncated): the vec env's check around each game
+        (:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`), which the workers' games run in, has refused an
+        observation of another shape or of a dtype that does not cast by NumPy's ``same_kind`` rule already."""
         rows = self.slots.obs[self._rows(game)]
         for agent_index, agent in enumerate(self.agents):
             rows[agent_index] = observations[agent]

@@ -538,12 +538,21 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         """Actions for any number of agents' observations (the actor is decentralised).
 
         :param observation: ``(B, d)`` observations of B agents, or ``(d,)`` for one agent
-        :param state: actor GRU states ``(B, H)`` from the previous call (``None``: zeros)
+        :param state: actor GRU states ``(B, H)`` from the previous call (``None``: zeros). An actor without GRU
+            (``recurrent=False`` or ``recurrent_actor=False``) has no state: it takes ``None`` only (SB3's
+            feed-forward ``predict`` ignores a state; here a state is refused, as a state of the wrong shape is for a
+            recurrent actor)
         :param episode_start: ``(B,)``, 1 where an agent starts a new episode (resets its state)
         :param deterministic: greedy actions (``True`` or ``False``; a string such as ``"no"`` is refused)
         :return: actions and the new actor states (``None`` for an MLP actor)
         """
         check_bool("predict", deterministic=deterministic)
+        if state is not None and not self.recurrent_actor:
+            setting = "recurrent_actor=False" if self.recurrent else "recurrent=False"
+            raise ValueError(
+                f"predict: the model's actor is feed-forward ({setting}) and has no state, got a state of type "
+                f"{type(state).__name__}; pass state=None (predict returns None as the next state)."
+            )
         self.set_training_mode(False)
         obs_array = self._predict_observations(observation)
         single = obs_array.ndim == len(self.observation_space.shape)  # type: ignore[arg-type]

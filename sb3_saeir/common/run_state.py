@@ -210,17 +210,22 @@ def restore_resume_state(
     set_rng_states(state["rng"])
 
 
-def save_checkpoint(model: Any, path: Path, extras: dict[str, Resumable] | None = None) -> None:
+def save_checkpoint(
+    model: Any, path: Path, extras: dict[str, Resumable] | None = None, state: dict[str, Any] | None = None
+) -> None:
     """Save the model zip with the resume state inside (entry ``resume_state.pkl``), atomically.
 
-    :param model: the model, at the start of a rollout
+    :param model: the model, at the start of a rollout (or at the end of ``learn``: the same point)
     :param path: the checkpoint's zip
     :param extras: other objects whose state the checkpoint carries (:func:`capture_resume_state`)
+    :param state: the resume state, captured earlier at such a point (``None``: captured now)
     """
+    if state is None:
+        state = capture_resume_state(model, extras)
     with atomic_file(path, "w+b") as file:
         model.save(file)
         with zipfile.ZipFile(file, "a") as archive:
-            archive.writestr(RESUME_ENTRY, cloudpickle.dumps(capture_resume_state(model, extras)))
+            archive.writestr(RESUME_ENTRY, cloudpickle.dumps(state))
 
 
 def load_resume_state(path: Path) -> dict[str, Any] | None:
@@ -240,6 +245,8 @@ def checkpoint_problem(path: Path) -> str:
 
     :param path: the zip
     """
+    if path.is_dir():
+        return "it is a folder, not a zip file"
     try:
         with zipfile.ZipFile(path) as archive:
             damaged = archive.testzip()

@@ -128,7 +128,11 @@ class _NoAgentDeath(BaseParallelWrapper):
 
     def _check_observations(self, observations: dict) -> None:
         """Raise one line naming the env, game, agent and step when an observation is missing, unknown, not made of
-        numbers (a string, ``None``, an object) or of another shape than the declared observation space."""
+        numbers (a string, ``None``, an object), of another shape than the declared observation space, or of a dtype
+        that does not cast to the declared one by NumPy's ``same_kind`` rule (floats for an integer space). That rule
+        is the one of gymnasium's ``concatenate`` on the in-process path (which raised NumPy's raw cast error), so the
+        check refuses nothing that path took; in the workers the shared array's assignment truncated such floats
+        without a word, and the same check refuses them there too."""
         possible = self._agent_names
         if observations.keys() != self._agent_set:
             unknown = sorted(set(observations) - self._agent_set, key=str)
@@ -149,11 +153,19 @@ class _NoAgentDeath(BaseParallelWrapper):
                     f"{self._where(agent)}: the observation is {_describe(observations[agent])}, not numbers; return "
                     f"a numeric array as the observation space declares ({self.env.observation_space(agent)})."
                 )
-            expected = self.env.observation_space(agent).shape
+            declared = self.env.observation_space(agent)
+            expected = declared.shape
             if expected is not None and observation.shape != tuple(expected):
                 raise GameFaultError(
                     f"{self._where(agent)}: an observation of shape {observation.shape}, its observation space "
                     f"declares {tuple(expected)}; return observations of the declared shape."
+                )
+            dtype = declared.dtype
+            if dtype is not None and observation.dtype != dtype and not np.can_cast(observation.dtype, dtype, "same_kind"):
+                raise GameFaultError(
+                    f"{self._where(agent)}: an observation of dtype {observation.dtype}, its observation space declares "
+                    f"{dtype}, which {observation.dtype} does not cast to (NumPy's same_kind rule); return observations "
+                    f"of the declared dtype, or declare dtype={observation.dtype} in the observation space."
                 )
 
     def _check_rewards(self, rewards: dict) -> np.ndarray:

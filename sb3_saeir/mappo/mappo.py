@@ -19,6 +19,7 @@ from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv
@@ -486,7 +487,8 @@ class MAPPO(OnPolicyAlgorithm):
     ) -> SelfMAPPO:
         """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``), the env's
         ``n_agents`` checked against the model's (as :meth:`set_env`), and one line for a file that is not a complete
-        model zip."""
+        model zip, or for ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit
+        (recurrent against feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`)."""
         name = cls.__name__
         overrides = {**(custom_objects or {}), **kwargs}
         checks.check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
@@ -495,7 +497,7 @@ class MAPPO(OnPolicyAlgorithm):
         checks.check_device(name, device)
         if env is not None:
             checks.check_env_argument(name, env)
-        with checks.model_zip_errors(name, path):
+        with checks.model_zip_errors(name, path, custom_objects):
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         model._apply_overrides(overrides)
         return model
@@ -516,6 +518,31 @@ class MAPPO(OnPolicyAlgorithm):
             bonus = (self.intrinsic_reward, self.intrinsic_coef, self.intrinsic_kwargs)
             self._bonus = checks.check_intrinsic_reward(type(self).__name__, *bonus)
             self.intrinsic_kwargs = dict(self.intrinsic_kwargs or {})
+
+    def set_parameters(
+        self,
+        load_path_or_dict: str | pathlib.Path | io.BufferedIOBase | dict[str, Any],
+        exact_match: bool = True,
+        device: th.device | str = "auto",
+    ) -> None:
+        """SB3's ``set_parameters``; with ``exact_match``, the parameters of a recurrent network given to a
+        feed-forward model (or the reverse) are refused in one line before any is set
+        (:func:`~sb3_saeir.common.checks.check_network_kind`; torch's ``load_state_dict`` error listed every GRU key).
+
+        :param load_path_or_dict: a model zip (path or file object), or a dict of state dicts as ``get_parameters``
+            returns it
+        :param exact_match: every module and parameter must be given (SB3's meaning); ``False``: missing and
+            unexpected keys are skipped (torch's ``strict=False``), and the kinds of network are not compared
+        :param device: device the parameters are loaded onto
+        """
+        if isinstance(load_path_or_dict, dict):
+            params = load_path_or_dict
+        else:
+            _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
+        saved_policy = params.get("policy")
+        if exact_match and isinstance(saved_policy, dict) and getattr(self, "policy", None) is not None:
+            checks.check_network_kind(f"{type(self).__name__}.set_parameters", saved_policy, self.policy)
+        super().set_parameters(params, exact_match=exact_match, device=device)
 
     def set_random_seed(self, seed: int | None = None) -> None:
         """SB3's ``set_random_seed``, also for NumPy integers; a bad seed is one line naming ``seed``.

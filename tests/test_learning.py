@@ -3,7 +3,8 @@
 - Sparse Cooperative Navigation on the paper's world (``world="mpe"``, the task's default) without the collision
   penalty, MAPPO and SAEIR_PPO, each with its packaged config (the benchmark's run: seed 1, 128 games) for
   PAPER_BUDGET agent-steps (1M, 1.7% of the paper's 60M). The claim, as measured by the learning-evidence runs
-  (docs/results.md: stage 1, MAPPO 26.7% and 21.7% final-step coverage at 1M agent-steps on seeds 1 and 2; stage 2,
+  (docs/results/navigation-variants.md, MAPPO 26.7% and 21.7% final-step coverage at 1M agent-steps on seeds 1 and 2;
+  docs/results/navigation-5pct.md,
   SAEIR_PPO 28.3% and 29.0% at 1M on seeds 1 and 2; random 1.5%): greedy coverage at least five times a random
   policy's and 0.10 above it, on the benchmark's evaluation episodes. Measured on 0.2.0a0: MAPPO 27.3% vs random
   1.7% (174 s with two benchmark jobs sharing the machine's two cores); SAEIR_PPO 30.3% vs random 1.7% (482 s, one

@@ -1,0 +1,78 @@
+"""The results pages cannot drift from the committed run files: the 3 vs 1 study page (``docs/results/football-3v1.md``)
+is rebuilt from its run files by ``benchmarks/results_pages.py`` and compared byte for byte, a changed run file shows
+up, and the report the page copies from (``football-stage-f/learning_speed.md``) re-generates from its ``runs.csv``."""
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+DOCS = Path(__file__).parent.parent / "docs"
+RESULTS = DOCS / "results"
+PAGE = "football-3v1"
+
+
+@pytest.fixture(scope="module")
+def pages(load_benchmark_script):
+    return load_benchmark_script("results_pages")
+
+
+def blocks(text):
+    """The generated blocks of a page: ``{command: lines}``."""
+    found, lines = {}, text.splitlines()
+    for index, line in enumerate(lines):
+        if line.startswith("<!-- results_pages: "):
+            end = lines.index("<!-- /results_pages -->", index)
+            found[line] = lines[index + 1 : end]
+    return found
+
+
+def test_the_3v1_page_rebuilds_from_its_run_files(pages, tmp_path):
+    assert pages.main(["--pages", PAGE, "--out", str(tmp_path)]) == 0
+    committed = (RESULTS / f"{PAGE}.md").read_text()
+    assert (tmp_path / "results" / f"{PAGE}.md").read_text() == committed
+    table = blocks(committed)[f"<!-- results_pages: rows {PAGE} -->"]
+    # the rows hold the numbers, not an empty block: seed 1 (football-probe) and seeds 2-3 (football-stage-f), at 2M
+    row = "| 3 vs 1 (1.0) | SAEIR_PPO | 3 | 45.0, 64.0, 62.0 | 57.00\u00a0±\u00a08.52 | 57.00 [45.00,\u00a064.00] | 0.5M |"
+    assert row in "\n".join(table)
+    assert len(table) == 4
+
+
+def test_a_changed_run_file_shows_on_the_page(pages, tmp_path):
+    docs = tmp_path / "docs"
+    shutil.copytree(RESULTS, docs / "results", ignore=shutil.ignore_patterns("*.png"))
+    assert pages.main(["--docs", str(docs), "--pages", PAGE, "--check"]) == 0
+    runs = docs / "results" / "football-stage-f" / "3v1" / "runs.csv"
+    lines = runs.read_text().splitlines()
+    header = lines[0].split(",")
+    last = max(range(1, len(lines)), key=lambda i: int(lines[i].split(",")[header.index("timesteps")]))
+    cells = lines[last].split(",")
+    cells[header.index("success_mean")] = "0.99"  # one seed's final success
+    lines[last] = ",".join(cells)
+    runs.write_text("\n".join(lines) + "\n")
+    assert pages.main(["--docs", str(docs), "--pages", PAGE, "--check"]) == 1
+    assert pages.main(["--docs", str(docs), "--pages", PAGE]) == 0  # rewritten: now it agrees with the changed file
+    assert "99.0" in (docs / "results" / f"{PAGE}.md").read_text()
+    assert pages.main(["--docs", str(docs), "--pages", PAGE, "--check"]) == 0
+
+
+def test_the_copied_report_regenerates_from_its_runs(load_benchmark_script, tmp_path, monkeypatch):
+    speed = load_benchmark_script("learning_speed")
+    monkeypatch.chdir(DOCS.parent)  # the report names its inputs as given: from the repository root, as report.sh does
+    folder = "docs/results/football-stage-f"
+    runs = ["docs/results/football-probe/runs.csv", f"{folder}/3v1/runs.csv", f"{folder}/counterattack/runs.csv"]
+    assert speed.main(["--out", str(tmp_path), *runs]) == 0
+    assert (tmp_path / "learning_speed.md").read_text() == (DOCS.parent / folder / "learning_speed.md").read_text()
+
+
+def test_every_study_has_a_page_in_the_summary_and_the_toctree(pages):
+    summary = (DOCS / "results.md").read_text()
+    for name in pages.STUDIES:
+        assert (RESULTS / f"{name}.md").is_file()
+        assert f"results/{name}\n" in summary  # the toctree
+        assert f"(results/{name}.md)" in summary  # a link
+
+
+def test_a_page_without_its_block_end_is_refused(pages, tmp_path):
+    with pytest.raises(SystemExit, match="has no"):
+        pages.rebuild("<!-- results_pages: rows football-3v1 -->\n| stale |\n", RESULTS)

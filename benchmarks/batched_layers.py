@@ -17,7 +17,7 @@ first. Four comparisons, each forward + backward of a sum, median of ``--repeats
   a ``stack`` (the update), against one wide product over the concatenated weights (same exclusion);
 - **GRU**: ``nn.GRU`` over the 10-step sequences against its matrix products alone (the floor a fused kernel could
   approach: input projection, recurrent products, and their gradients);
-- **compiled message passing** (``--compile``): ``ScaleCritic._message_passing`` eager against ``torch.compile``.
+- **compiled message passing** (``--compile``): ``HypergraphScaleCritic._message_passing`` eager against ``torch.compile``.
 
 Each batched variant's outputs are compared with the update's (max abs difference printed). Results and what they
 mean for the update: ``docs/guide/performance.md``, "Batched products and fused kernels".
@@ -34,7 +34,7 @@ import torch as th
 import torch.nn.functional as F
 from torch import nn
 
-from sb3_saeir.common.torch_layers import FCBlock, ScaleCritic
+from sb3_saeir.common.torch_layers import FCBlock, HypergraphScaleCritic
 
 
 def time_ms(step: Callable[[], None], iterations: int, repeats: int) -> float:
@@ -155,7 +155,7 @@ def compare_gru(rows: int, hidden: int, n_steps: int, iterations: int, repeats: 
 
 
 def compare_compiled_message_passing(scale: str, rows: int, hidden: int, iterations: int, repeats: int) -> None:
-    critic = ScaleCritic(18, 3, scale, hidden_size=hidden)
+    critic = HypergraphScaleCritic(18, 3, scale, hidden_size=hidden)
     nodes = th.randn(rows // 3, 3, hidden, requires_grad=True)  # (B, N, H)
     uniform = th.rand(rows // 3, *critic.gumbel_shape)  # (B, E, T_K)
     compiled = th.compile(critic._message_passing)

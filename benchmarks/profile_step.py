@@ -27,7 +27,7 @@ from torch.profiler import ProfilerActivity, profile, record_function
 
 from sb3_saeir.config import build_model
 
-# modules timed one level below the policy's actor and critics (ScaleCritic's message-passing parts included)
+# modules timed one level below the policy's actor and critics (HypergraphScaleCritic's message-passing parts included)
 _MODULE_DEPTH = 4
 
 

@@ -1,25 +1,21 @@
-"""rl-zoo style YAML configs: one file per method in ``zoo_configs/``, one entry per task id.
+"""rl-zoo style YAML configs and the models built from them: one file per method in ``zoo_configs/``, one entry per
+task id.
 
 Entry keys (rl-zoo's vocabulary): ``n_timesteps`` (agent-steps), ``n_envs`` (number of *games*; the vec env has
 ``n_envs * n_agents`` slots), ``num_cpus`` (env worker processes, 0 by default), ``policy``, ``policy_kwargs`` (a dict
 or a string evaluated with ``nn`` in scope, as rl-zoo does), ``env_kwargs``, ``callback`` (``"module.Class"`` or
 ``{"module.Class": {kwargs}}`` or a list of these); every other key is a constructor argument of the method's
-algorithm class.
+algorithm class. The command lines' own options and their checks are :mod:`sb3_saeir.command_line`.
 """
 
 from __future__ import annotations
 
-import argparse
-import contextlib
 import importlib
 import inspect
 import os
 import re
-import sys
 import types
 import typing
-import warnings
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -30,10 +26,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
-from sb3_saeir.common import checks
-from sb3_saeir.common.utils import check_seed, unwritable_folder
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.envs import list_tasks
 from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
 
@@ -51,6 +44,8 @@ ALGOS: dict[str, type[BaseAlgorithm]] = {
 
 # Keys of a config entry that are not constructor arguments of the algorithm.
 CONFIG_KEYS = ("n_timesteps", "n_envs", "num_cpus", "env_kwargs", "policy", "policy_kwargs", "callback")
+# Games of a config entry without ``n_envs``.
+DEFAULT_N_GAMES = 8
 
 
 class ConfigError(ValueError):
@@ -121,107 +116,6 @@ def parse_params(items: list[str] | None) -> dict[str, Any]:
         except ConfigError as error:
             raise ConfigError(f"-params {key}: {error}") from error
     return params
-
-
-# ------------------------------------------------------------------------------------------------ command lines
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, ``<prog>: error: <message> (see --help)``, exit status 2."""
-
-    def error(self, message: str) -> typing.NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see --help).\n")
-
-
-def count(text: str) -> int:
-    """argparse type of a count: an integer, also written as rl-zoo3 users write big numbers (``1e6``, ``2.5e5``)."""
-    try:
-        return int(text)
-    except ValueError:
-        pass
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid integer {text!r}") from None
-    if not value.is_integer():
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number")
-    return int(value)
-
-
-def check_range(option: str, value: int | None, low: int, meaning: str = "") -> None:
-    """Refuse ``value < low`` of a command-line option (``None``: not given, accepted).
-
-    :param option: the option's name, e.g. ``--eval-episodes``
-    :param value: its value
-    :param low: smallest valid value
-    :param meaning: what the smallest values mean, appended to the message (e.g. ``"; 0: never"``)
-    """
-    if value is not None and value < low:
-        raise ConfigError(f"{option} must be >= {low}{meaning}, got {value}.")
-
-
-# The --seed of the training commands that draws a seed (rl-zoo's convention)
-DRAW_SEED = -1
-
-
-def check_seed_option(seed: int, option: str = "--seed", draw: int | None = None) -> None:
-    """Refuse a ``--seed`` outside ``0 .. 2**32 - 1`` (and other than ``draw``, the value that draws one) with the
-    check of the Python API (:func:`~sb3_saeir.common.utils.check_seed`).
-
-    :param seed: the option's value
-    :param option: the option's name
-    :param draw: the value that draws a seed (``None``: none does)
-    """
-    if draw is not None and seed == draw:
-        return
-    try:
-        check_seed("", seed, option, hint="" if draw is None else f" (or {draw} to draw one)")
-    except ValueError as error:
-        raise ConfigError(str(error)) from None
-
-
-def check_device(device: str) -> None:
-    """Refuse a ``--device`` torch does not know, or ``cuda`` on a machine without CUDA (SB3 would fall back to the
-    CPU without a word): :func:`sb3_saeir.common.checks.check_device` as a :class:`ConfigError`."""
-    try:
-        checks.check_device("--device", device, cpu_fallback=False)
-    except ValueError as error:
-        raise ConfigError(str(error)) from None
-
-
-def check_folder(option: str, folder: str | os.PathLike | None) -> None:
-    """Refuse an output folder that cannot be created or written: empty, a file, under a file, or not writable.
-
-    :param option: the option's name, e.g. ``-f``
-    :param folder: the folder (``None``: not given, accepted)
-    """
-    if folder is None:
-        return
-    if str(folder) == "":
-        raise ConfigError(f"{option} is empty: give a folder (e.g. {option} logs).")
-    path = Path(folder)
-    if path.exists() and not path.is_dir():
-        raise ConfigError(f"{option} {path} is a file, not a folder.")
-    problem = unwritable_folder(path)
-    if problem:
-        raise ConfigError(f"{option} {path}: {problem}; give a folder you can write.")
-
-
-def check_output_file(option: str, file: str | os.PathLike | None) -> None:
-    """Refuse an output file that cannot be written: empty, a folder, or in a folder that does not exist or is not
-    writable.
-
-    :param option: the option's name, e.g. ``--gif``
-    :param file: the file (``None``: not given, accepted)
-    """
-    if file is None:
-        return
-    path = Path(file)
-    if str(file) == "" or path.is_dir():
-        raise ConfigError(f"{option} {str(file)!r} is not a file name (e.g. {option} replay.gif).")
-    parent = path.parent
-    if not parent.is_dir():
-        raise ConfigError(f"{option} {path}: the folder {parent} does not exist.")
-    if unwritable_folder(parent) or (path.exists() and not os.access(path, os.W_OK)):
-        raise ConfigError(f"{option} {path} is not writable.")
 
 
 def valid_keys(algo: str) -> list[str]:
@@ -324,27 +218,6 @@ def check_n_envs(n_envs: Any) -> None:
     """
     if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1):
         raise ConfigError(f"n_envs (number of games) must be a positive integer, got {n_envs!r}; e.g. n_envs: 8.")
-
-
-@contextlib.contextmanager
-def one_line_warnings(prog: str) -> Iterator[None]:
-    """While a command runs, show each warning as one ``<prog>: warning: <message>`` line on stderr (Python's default
-    adds the file, the line number and the source line).
-
-    :param prog: the command, e.g. ``sb3_saeir.train``
-    """
-    previous = warnings.showwarning
-
-    def show(
-        message: Warning | str, category: type[Warning], filename: str, lineno: int, file: Any = None, line: Any = None
-    ) -> None:
-        print(f"{prog}: warning: {message}", file=sys.stderr if file is None else file)
-
-    warnings.showwarning = show
-    try:
-        yield
-    finally:
-        warnings.showwarning = previous
 
 
 def config_dir() -> Path:
@@ -459,7 +332,7 @@ def build_model(
     """
     params = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
     resolved = dict(params)
-    games = int(n_games if n_games is not None else params.get("n_envs", 8))
+    games = int(n_games if n_games is not None else params.get("n_envs", DEFAULT_N_GAMES))
     resolved["n_envs"] = games
     if env is None:
         num_cpus = int(params.get("num_cpus", 0))
@@ -479,86 +352,3 @@ def build_model(
     policy_kwargs = parse_policy_kwargs(params.get("policy_kwargs"))
     model = ALGOS[algo](policy, env, policy_kwargs=policy_kwargs, seed=seed, **algo_kwargs)
     return model, env, build_callbacks(params.get("callback")), resolved
-
-
-# ---------------------------------------------------------------------------------------------------- train's options
-def resume_target(text: str) -> int | Path:
-    """argparse type of ``--resume``'s value: a run number (``3``, as rl-zoo's ``--exp-id``; a number that is not
-    whole is refused), or else the path of a run folder (a run moved to another log folder:
-    ``--resume /data/logs/mappo/cn-sparse-n3_3``)."""
-    try:
-        float(text)
-    except ValueError:
-        return Path(text)
-    return count(text)
-
-
-def check_arguments(args: argparse.Namespace) -> None:
-    """The command-line options that no config check sees: sizes, paths, device (a
-    :class:`~sb3_saeir.config.ConfigError` naming the first bad one), checked before anything is built or written."""
-    check_range("--eval-freq", args.eval_freq, 0, " (0: never)")
-    check_range("--eval-episodes", args.eval_episodes, 1)
-    check_range("--save-freq", args.save_freq, -1, " (-1 or 0: never)")
-    check_range("--num-threads", args.num_threads, 0, " (0: the free cores)")
-    if args.seed is not None:  # None: not given (0, or the run's at --resume)
-        check_seed_option(args.seed, draw=DRAW_SEED)
-    check_folder("-f/--log-folder", args.log_folder)
-    check_folder("-tb/--tensorboard-log", args.tensorboard_log)
-    check_device(args.device)
-    if args.resume is not None and args.optimize:
-        raise ConfigError("--resume continues one training run; it does not apply to --optimize (drop one of them).")
-    if args.optimize:
-        check_range("--n-trials", args.n_trials, 1)
-        check_range("--n-evaluations", args.n_evaluations, 1)
-        if args.n_jobs != -1:
-            check_range("--n-jobs", args.n_jobs, 1, " (or -1: one per CPU)")
-        if args.storage is not None:
-            check_storage(args.storage)
-
-
-def check_storage(storage: str) -> None:
-    """Refuse an Optuna storage URL whose database kind SQLAlchemy does not know (without connecting to it)."""
-    import sqlalchemy.exc
-    from sqlalchemy.engine import make_url
-
-    try:
-        make_url(storage).get_dialect()
-    except (sqlalchemy.exc.ArgumentError, ValueError) as error:
-        raise ConfigError(
-            f"--storage {storage!r} is not a database URL SQLAlchemy knows ({error}); e.g. sqlite:///study.db or "
-            "postgresql://user:password@host/db."
-        ) from None
-
-
-def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
-    """The config entry (packaged or ``-conf``) with ``-params`` and ``--n-games`` / ``--n-timesteps`` applied."""
-    if args.algo not in ALGOS:
-        raise ConfigError(f"unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
-    if args.task not in list_tasks():
-        raise ConfigError(f"unknown task {args.task!r}; valid choices: {', '.join(list_tasks())}.")
-    conf_file = args.conf_file or config_path(args.algo)
-    if not Path(conf_file).is_file():
-        raise ConfigError(f"config file {conf_file} does not exist.")
-    try:
-        hyperparams = load_hyperparams(args.algo, args.task, conf_file)
-    except KeyError as error:
-        raise ConfigError(str(error.args[0])) from error
-    overrides = parse_params(args.params)
-    if args.n_games is not None:
-        overrides["n_envs"] = args.n_games
-    if args.n_timesteps is not None:
-        overrides["n_timesteps"] = args.n_timesteps
-    if args.num_cpus is not None:
-        overrides["num_cpus"] = args.num_cpus
-    if args.double_buffered is not None:
-        overrides["double_buffered"] = DOUBLE_BUFFERED_FLAGS[args.double_buffered]
-    if getattr(args, "compile", None) is not None:
-        overrides["compile"] = args.compile == "on"
-    check_hyperparams(args.algo, hyperparams, overrides)
-    resolved = {**hyperparams, **overrides}
-    check_folder("tensorboard_log", resolved.get("tensorboard_log"))
-    return resolved
-
-
-# Values of --double-buffered -> the algorithms' double_buffered.
-DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}

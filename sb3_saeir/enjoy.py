@@ -17,22 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from sb3_saeir.command_line import OneLineParser, check_output_file, check_range, check_seed_option, count
 from sb3_saeir.common.atomic import atomic_path
 from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.run_files import CONFIG_FILE
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.config import (
-    ALGOS,
-    ConfigError,
-    OneLineParser,
-    check_output_file,
-    check_range,
-    check_seed_option,
-    count,
-    load_hyperparams,
-    load_yaml,
-    parse_params,
-)
+from sb3_saeir.config import ALGOS, ConfigError, load_hyperparams, load_yaml, parse_params
 from sb3_saeir.envs import list_tasks, make_task
 from sb3_saeir.evaluation import evaluate_multiagent_policy
 from sb3_saeir.experiment import find_model, model_method_mismatch
@@ -103,7 +94,7 @@ def model_env_mismatch(model: Any, env: Any) -> str:
 
 def run_env_kwargs(model_path: Path, task: str) -> dict[str, Any]:
     """The ``env_kwargs`` of the run a model was saved in (``<run>/<task>/config.yml``), or ``{}``."""
-    config = model_path.parent / task / "config.yml"
+    config = model_path.parent / task / CONFIG_FILE
     if not config.is_file():
         return {}
     return dict((load_yaml(config.read_text()) or {}).get("env_kwargs") or {})

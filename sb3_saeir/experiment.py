@@ -1,16 +1,10 @@
-"""One experiment object behind every command line: a method's config on a task, built, trained, evaluated, saved.
+"""One experiment object behind every command line: a method's config on a task, built, trained, saved.
 
-:class:`Experiment` is what ``python -m sb3_saeir.train``, ``python -m sb3_saeir.benchmark`` and the Optuna trials
-(``--optimize``) share, as rl-zoo3's ``ExperimentManager`` is for rl-zoo3: the training env, the evaluation env,
-the model from the packaged (or given) config, the callbacks, ``learn`` and ``save``. It is also the shortest way to
-run a packaged config from Python::
-
-    experiment = Experiment("saeir_ppo", "cn-sparse-n3", seed=0, n_games=16)
-    experiment.build()
-    experiment.learn(200_000)
-    experiment.save("saeir_cn3.zip")
-
-The run-folder helpers (rl-zoo's ``<log-folder>/<algo>/<task>_<run>`` layout) live here too.
+:class:`Experiment` is what ``python -m sb3_saeir.train``, the benchmark, ``python -m sb3_saeir.zoo train`` and the
+Optuna trials share, as rl-zoo3's ``ExperimentManager`` is for rl-zoo3: the training and evaluation envs, the model
+from the packaged (or given) config, its callbacks, ``learn`` and ``save``; a run in a folder is a
+:class:`~sb3_saeir.run.Run` of it. The saved-model checks and rl-zoo's run numbering
+(``<log-folder>/<algo>/<task>_<run>``) live here too.
 """
 
 from __future__ import annotations
@@ -30,11 +24,19 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
+from sb3_saeir.common.run_files import BEST_MODEL_FILE, FINAL_MODEL
 from sb3_saeir.common.run_state import load_resume_state
-from sb3_saeir.common.vec_env import MultiAgentVecMonitor, make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, ConfigError, build_callbacks, build_model, load_hyperparams, parse_policy_kwargs
+from sb3_saeir.common.vec_env import make_multiagent_vec_env
+from sb3_saeir.config import (
+    ALGOS,
+    DEFAULT_N_GAMES,
+    ConfigError,
+    build_callbacks,
+    build_model,
+    load_hyperparams,
+    parse_policy_kwargs,
+)
 from sb3_saeir.envs import get_task_spec
-from sb3_saeir.evaluation import MultiAgentEvalCallback
 
 # Seed offset of evaluation envs: evaluation games never replay the training games' seeds.
 EVAL_SEED_OFFSET = 10_000
@@ -43,13 +45,18 @@ MAX_EVAL_GAMES = 10
 
 
 class Experiment:
-    """A method's config entry on a task: builds the envs and the model, trains, evaluates and saves.
+    """A method's config entry on a task: builds the envs and the model, trains and saves (nothing written but by
+    :meth:`save`: a run in a folder, with its evaluations and checkpoints, is a :class:`~sb3_saeir.run.Run`)::
+
+        experiment = Experiment("saeir_ppo", "cn-sparse-n3", seed=0, n_games=16)
+        experiment.build()
+        experiment.learn(200_000)
+        experiment.save("saeir_cn3.zip")
 
     :param algo: method name (a key of :data:`sb3_saeir.config.ALGOS`, e.g. ``"saeir_ppo"``)
     :param task: task id (e.g. ``"cn-sparse-n3"``)
     :param hyperparams: the config entry (default: the packaged ``zoo_configs/<algo>.yml`` entry of ``task``)
     :param seed: seed of the model and the training env (game ``g`` gets ``seed + g``)
-    :param log_folder: the run's folder (``None``: nothing written by :meth:`build`; see :func:`claimed_run_folder`)
     :param n_games: override the config's ``n_envs`` (number of games)
     :param num_cpus: env worker processes of the training env (0: every game in this process); overrides the config's
         ``num_cpus``
@@ -61,7 +68,6 @@ class Experiment:
         task: str,
         hyperparams: dict[str, Any] | None = None,
         seed: int = 0,
-        log_folder: str | Path | None = None,
         n_games: int | None = None,
         num_cpus: int | None = None,
     ) -> None:
@@ -71,8 +77,8 @@ class Experiment:
         self.task = task
         self.hyperparams = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
         self.seed = seed
-        self.log_folder = Path(log_folder) if log_folder is not None else None
-        self.n_games = _whole("n_games", n_games if n_games is not None else self.hyperparams.get("n_envs", 8), 1)
+        games = n_games if n_games is not None else self.hyperparams.get("n_envs", DEFAULT_N_GAMES)
+        self.n_games = _whole("n_games", games, 1)
         self.num_cpus = _whole("num_cpus", num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0), 0)
         self.model: BaseAlgorithm | None = None
         self.env: VecEnv | None = None
@@ -97,15 +103,12 @@ class Experiment:
         return get_task_spec(self.task).main_metric
 
     # ------------------------------------------------------------------------------------------------ envs
-    def make_env(self, monitor: bool = False) -> VecEnv:
-        """The training env: ``n_games`` games seeded from ``seed``; with ``monitor``, a
-        :class:`~sb3_saeir.common.vec_env.MultiAgentVecMonitor` writing ``games.monitor.csv`` into the log folder."""
-        env: VecEnv = make_multiagent_vec_env(
+    def make_env(self) -> VecEnv:
+        """The training env: ``n_games`` games seeded from ``seed`` (a run monitors it into its folder:
+        :meth:`~sb3_saeir.run.Run.make_env`)."""
+        return make_multiagent_vec_env(
             self.task, n_games=self.n_games, seed=self.seed, num_cpus=self.num_cpus, **self.env_kwargs
         )
-        if monitor and self.log_folder is not None:
-            env = MultiAgentVecMonitor(env, str(self.log_folder / "games"), env_id=self.task)
-        return env
 
     def make_eval_env(self, n_episodes: int, seed: int | None = None) -> VecEnv:
         """An evaluation env of ``min(n_episodes, 10)`` games (closed by :meth:`close`).
@@ -120,32 +123,15 @@ class Experiment:
         self._eval_envs.append(env)
         return env
 
-    def eval_callback(
-        self, eval_freq: int, n_episodes: int, save_best: bool = True, verbose: int = 0
-    ) -> MultiAgentEvalCallback:
-        """Evaluation every ``eval_freq`` agent-steps on a fresh eval env; ``evaluations.npz`` and (with
-        ``save_best``) ``best_model.zip`` by the task's main metric in the log folder."""
-        folder = str(self.log_folder) if self.log_folder is not None else None
-        return MultiAgentEvalCallback(
-            self.make_eval_env(n_episodes),
-            n_eval_episodes=n_episodes,
-            eval_freq=eval_freq,
-            main_metric=self.main_metric,
-            log_path=folder,
-            best_model_save_path=folder if save_best else None,
-            verbose=verbose,
-        )
-
     # ------------------------------------------------------------------------------------------------ model
-    def build(self, env: VecEnv | None = None, monitor: bool = False, **model_kwargs: Any) -> BaseAlgorithm:
+    def build(self, env: VecEnv | None = None, **model_kwargs: Any) -> BaseAlgorithm:
         """Build the training env (unless given) and the model from the config.
 
         :param env: use this multi-agent vec env instead of :meth:`make_env`
-        :param monitor: wrap the training env in a monitor writing into the log folder
         :param model_kwargs: algorithm arguments that override the config (``verbose``, ``device``, ...)
         :return: the model (also ``self.model``; the env is ``self.env``)
         """
-        self.env = env if env is not None else self.make_env(monitor=monitor)
+        self.env = env if env is not None else self.make_env()
         self.model, _, self.config_callbacks, self.resolved_hyperparams = build_model(
             self.algo, self.task, self.hyperparams, n_games=self.n_games, seed=self.seed, env=self.env, **model_kwargs
         )
@@ -173,6 +159,15 @@ class Experiment:
         self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log, **settings)
         self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
         return self.model
+
+    def attach(self, model: BaseAlgorithm) -> BaseAlgorithm:
+        """Take a model built elsewhere (by rl-zoo3's ``ExperimentManager``) as this experiment's, its env as the
+        training env.
+
+        :param model: the model, on a multi-agent vec env
+        """
+        self.model, self.env = model, model.get_env()
+        return model
 
     def resume(self, checkpoint: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> dict[str, Any] | None:
         """Load a checkpoint's model onto the training env (:meth:`load`) and return its resume state, for a
@@ -401,7 +396,7 @@ def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, lo
     runs = run_numbers(log_folder, algo, task)
     if not runs:
         raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo}.")
-    name = "best_model.zip" if load_best else f"{task}.zip"
+    name = BEST_MODEL_FILE if load_best else FINAL_MODEL.format(task=task)
     if exp_id:
         if exp_id not in runs:
             raise FileNotFoundError(f"no run {exp_id} of {algo} on {task}; runs: {sorted(runs)}.")

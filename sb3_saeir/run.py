@@ -1,33 +1,16 @@
-"""One training run in its folder: :class:`Run` owns the folder's files, the settings record and its comparison on
-resume, the resume point, the checkpoints, the evaluations, the logger, Ctrl-C and the final save.
+"""One training run in its folder: :class:`Run` owns the protocol (:meth:`Run.execute`: lock the folder, find the
+resume point, build, check the settings against the record, record them, train, close) and the run's evaluations,
+checkpoints, logger, Ctrl-C and final save. ``python -m sb3_saeir.train``, the benchmark and ``python -m sb3_saeir.zoo
+train`` build only what differs (the :class:`~sb3_saeir.run_record.RunSpec`, the experiment, how the model is built).
 
-``python -m sb3_saeir.train`` (rl-zoo's ``<log-folder>/<algo>/<task>_<N>/``) and ``python -m sb3_saeir.benchmark``
-(``<out>/runs/<algo>/<task>_s<seed>/``) put their runs in different places and are thin callers of :class:`Run`; the
-inside of a run folder is the same for both (``docs/guide/training.md``, "The run folder"):
-
-- ``spec.json``: the settings record (:class:`RunSpec`: method, task, seed, budget, games, evaluation, overrides, the
-  config entry it trains with, the command's other settings, the package version), compared on every resume
-  (:func:`spec_differences`); ``<task>/config.yml`` and ``<task>/args.yml`` as rl-zoo3 writes them;
-- ``rl_model_<steps>_steps.zip``: resumable checkpoints (:mod:`sb3_saeir.common.run_state`);
-- ``evaluations.csv`` (one row per evaluation), ``evaluations.npz`` and ``best_model.zip`` (SB3's evaluation files):
-  evaluations at the start, at the first agent-step count >= k * ``eval_freq`` (k = 1, 2, ...) and at the end, each
-  on the same episodes (the eval env is reseeded before each);
-- ``progress.csv`` (SB3's logger, continued over resumes), ``games.monitor.csv`` (one row per finished game),
-  ``segments.json`` (wall time of each process that worked on the run), ``resume.log`` (what each resume did);
-- ``<task>.zip`` and ``done.json`` when finished (the final model, with the resume state of its last step, from
-  which a larger budget continues: "Training a run longer"; total wall time and agent-steps).
-
-Run folders written before this layout resume too: a benchmark run's ``checkpoint.zip`` is read as its newest
-checkpoint, and a ``train`` run without ``spec.json`` is compared through its ``args.yml`` and ``config.yml``.
+The files of a run folder: ``docs/guide/training.md``, "The run folder"; what they record and how it is read:
+:mod:`sb3_saeir.run_record`.
 """
 
 from __future__ import annotations
 
-import csv
 import errno
 import inspect
-import io
-import json
 import shutil
 import signal
 import sys
@@ -35,58 +18,64 @@ import threading
 import time
 import zipfile
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager, suppress
-from dataclasses import asdict, dataclass, field
+from contextlib import ExitStack, contextmanager, suppress
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import KVWriter
 from stable_baselines3.common.utils import configure_logger
+from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
+from sb3_saeir.common.run_files import (
+    CHECKPOINT_NAME,
+    CONFIG_FILE,
+    DONE_FILE,
+    EVALUATIONS_FILE,
+    FINAL_MODEL,
+    MONITOR_PREFIX,
+    SEGMENTS_FILE,
+    SHORTER_RUN_MODEL,
+    SPEC_FILE,
+)
+from sb3_saeir.common.run_lock import RunFolderLock
 from sb3_saeir.common.run_state import (
     RunCheckpointCallback,
     SegmentClock,
     capture_resume_state,
-    checkpoint_problem,
     describe_resume,
     is_exact,
     load_resume_state,
     progress_logger,
     save_checkpoint,
-    utc_stamp,
 )
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
-from sb3_saeir.config import ConfigError, load_hyperparams
+from sb3_saeir.config import ConfigError
 from sb3_saeir.evaluation import MultiAgentEvalCallback
-from sb3_saeir.experiment import EVAL_SEED_OFFSET, Experiment, numbered_paths
+from sb3_saeir.experiment import EVAL_SEED_OFFSET, Experiment
+from sb3_saeir.run_record import (
+    ResumePoint,
+    RunLog,
+    RunSpec,
+    checkpoint_steps,
+    done_record,
+    extended_budget,
+    extension_record,
+    keep_damaged_checkpoints,
+    newest_loading_checkpoint,
+    read_done_file,
+    same_row,
+    save_run_config,
+    saved_timesteps,
+    spec_differences,
+    spec_record,
+    split_rows,
+    write_done_file,
+    write_rows,
+    write_spec_file,
+)
 
-# Files of a run folder.
-SPEC_FILE = "spec.json"
-CHECKPOINT_NAME = "rl_model_{steps}_steps.zip"
-LEGACY_CHECKPOINT = "checkpoint.zip"  # the benchmark's one checkpoint before this layout: read, never written
-EVALUATIONS_FILE = "evaluations.csv"
-DONE_FILE = "done.json"
-SEGMENTS_FILE = "segments.json"
-RESUME_LOG = "resume.log"
-MONITOR_PREFIX = "games"  # -> games.monitor.csv
-# Settings of a RunSpec compared on resume, by their command-line names.
-SPEC_SETTINGS = {
-    "n_timesteps": "-n",
-    "n_games": "--n-games",
-    "eval_freq": "--eval-freq",
-    "eval_episodes": "--eval-episodes",
-    "params": "-params",
-}
-# What a smaller budget than a run's record is told (a larger one trains the run longer).
-SHORTER = " (a run is not trained shorter; a larger -n trains it longer)"
-# Config keys a resume does not compare: mirrored by a setting (n_envs: --n-games, n_timesteps: -n), or a setting of
-# the machine, not of what is trained (compile).
-UNCOMPARED_CONFIG_KEYS = ("n_envs", "n_timesteps", "compile")
-# -params keys that may change at a resume: settings of the machine (docs/guide/training.md).
-RESUME_FREE_PARAMS = ("compile",)
 # errno values of a write that failed for want of space.
 NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
@@ -94,218 +83,6 @@ NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 class RunStoppedError(RuntimeError):
     """Training stopped by the system (a full disk): the message names the run's folder and the checkpoint to resume
     from."""
-
-
-# ---------------------------------------------------------------------------------------------------- settings
-@dataclass(frozen=True)
-class RunSpec:
-    """One training run's settings: what its ``spec.json`` records and a resume compares.
-
-    :param algo: the method
-    :param task: the task id
-    :param seed: the seed
-    :param n_timesteps: the run's budget in agent-steps
-    :param n_games: games (``None``: the config's ``n_envs``)
-    :param eval_freq: agent-steps between evaluations (0: none)
-    :param eval_episodes: game episodes per evaluation
-    :param params: config overrides (``-params``)
-    :param config: the config entry it trains with (overrides applied); ``None``: the packaged entry of ``algo`` and
-        ``task`` with ``params`` applied, read when needed (:meth:`resolved_config`)
-    :param options: the command's other settings that a resume must repeat, by their flags (``--save-freq``, ...)
-    """
-
-    algo: str
-    task: str
-    seed: int
-    n_timesteps: int
-    n_games: int | None = None
-    eval_freq: int = 50_000
-    eval_episodes: int = 20
-    params: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
-    config: dict[str, Any] | None = field(default=None, hash=False, compare=False)
-    options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
-
-    @property
-    def name(self) -> str:
-        return f"{self.algo}/{self.task}_s{self.seed}"
-
-    def resolved_config(self) -> dict[str, Any]:
-        """The config entry the run trains with: ``config``, else the packaged entry with ``params`` applied."""
-        if self.config is not None:
-            return dict(self.config)
-        return {**load_hyperparams(self.algo, self.task), **self.params}
-
-
-def _jsonable(value: Any) -> Any:
-    """``value`` as it reads back from JSON (tuples become lists, unknown objects their ``str``)."""
-    return json.loads(json.dumps(value, sort_keys=True, default=str))
-
-
-def spec_record(spec: RunSpec) -> dict[str, Any]:
-    """What a run's ``spec.json`` holds: its settings, the config entry it trains with, the package version
-    (``options`` only when the command has any)."""
-    from sb3_saeir import __version__
-
-    record = {**asdict(spec), "config": spec.resolved_config(), "version": __version__}
-    if not spec.options:
-        del record["options"]
-    return _jsonable(record)
-
-
-def _show(value: Any) -> str:
-    return "(unset)" if value is None else json.dumps(value, sort_keys=True)
-
-
-def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: tuple[str, ...] = ()) -> list[str]:
-    """What differs between a run's stored settings record and the planned run, as ``"<setting> <old> -> <new>"``.
-
-    The package version is recorded, not compared; config keys set by ``-params`` are reported once, as ``-params``;
-    :data:`UNCOMPARED_CONFIG_KEYS` are not compared; a larger budget than the record's is no difference (the run is
-    trained longer: :func:`extended_budget`), a smaller one is.
-
-    :param stored: the run's ``spec.json`` (or :func:`legacy_train_record`)
-    :param planned: :func:`spec_record` of the planned run
-    :param ignored: flags of ``options`` not compared (``-f`` for a run resumed by its folder's path)
-    """
-    differences = [
-        f"{key} {_show(stored.get(key))} -> {_show(planned[key])}"
-        for key in ("algo", "task", "seed")
-        if stored.get(key) != planned[key]
-    ]
-    compared = {**stored, "params": _compared_params(stored.get("params"))}
-    planned_compared = {**planned, "params": _compared_params(planned["params"])}
-    differences += [
-        f"{flag} {_show(compared.get(key))} -> {_show(planned_compared[key])}{_shorter(key, stored)}"
-        for key, flag in SPEC_SETTINGS.items()
-        if compared.get(key) != planned_compared[key] and not (key == "n_timesteps" and extended_budget(stored, planned[key]))
-    ]
-    old_options, new_options = stored.get("options") or {}, planned.get("options") or {}
-    differences += [
-        f"{flag} {_show(old_options.get(flag))} -> {_show(new_options.get(flag))}"
-        for flag in sorted((set(old_options) | set(new_options)) - set(ignored))
-        if old_options.get(flag) != new_options.get(flag)
-    ]
-    old_config, new_config = stored.get("config") or {}, planned["config"]
-    skipped = set(stored.get("params") or {}) | set(planned["params"]) | set(UNCOMPARED_CONFIG_KEYS)
-    differences += [
-        f"config {key} {_show(old_config.get(key))} -> {_show(new_config.get(key))}"
-        for key in sorted((set(old_config) | set(new_config)) - skipped)
-        if old_config.get(key) != new_config.get(key)
-    ]
-    return differences
-
-
-def _compared_params(params: Any) -> Any:
-    """``-params`` as a resume compares them: without :data:`RESUME_FREE_PARAMS` (``None`` stays ``None``)."""
-    if not isinstance(params, dict):
-        return params
-    return {key: value for key, value in params.items() if key not in RESUME_FREE_PARAMS}
-
-
-def _shorter(key: str, stored: dict[str, Any]) -> str:
-    """:data:`SHORTER` for a budget that differs from a record's budget (it is smaller: a larger one is no difference)."""
-    budget = stored.get(key)
-    return SHORTER if key == "n_timesteps" and isinstance(budget, (int, float)) and not isinstance(budget, bool) else ""
-
-
-def extended_budget(stored: dict[str, Any], n_timesteps: int) -> int | None:
-    """The budget a run's record holds when ``n_timesteps`` is larger (the run is to be trained longer, an extension),
-    ``None`` when it is not larger (or the record holds no budget).
-
-    :param stored: the run's settings record
-    :param n_timesteps: the budget of the command
-    """
-    budget = stored.get("n_timesteps")
-    if isinstance(budget, (int, float)) and not isinstance(budget, bool) and n_timesteps > budget:
-        return int(budget)
-    return None
-
-
-def extension_record(stored: dict[str, Any], n_timesteps: int, finished: dict[str, Any] | None) -> dict[str, Any]:
-    """A run's settings record after an extension to ``n_timesteps``: the new budget, and the extension appended to
-    its ``extensions`` (the budget before, the new one, when, and the ``done.json`` of the shorter run if it finished).
-
-    :param stored: the run's settings record before
-    :param n_timesteps: the new budget
-    :param finished: the shorter run's ``done.json`` (``None``: it had not finished)
-    """
-    record = json.loads(json.dumps(stored))
-    extension = {"from": record["n_timesteps"], "to": n_timesteps, "at": utc_stamp(), "finished": finished}
-    record["n_timesteps"] = n_timesteps
-    if isinstance(record.get("config"), dict) and "n_timesteps" in record["config"]:
-        record["config"]["n_timesteps"] = n_timesteps
-    record["extensions"] = [*record.get("extensions", []), extension]
-    return record
-
-
-def read_spec_file(folder: Path) -> dict[str, Any] | None:
-    """A run folder's ``spec.json`` (``None`` when there is none).
-
-    :raises ~sb3_saeir.config.ConfigError: when it is not a JSON object
-    """
-    path = folder / SPEC_FILE
-    if not path.is_file():
-        return None
-    try:
-        record = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise ConfigError(f"{path} is damaged (not valid JSON: {error}); restore it from a copy.") from None
-    if not isinstance(record, dict):
-        raise ConfigError(f"{path} is damaged (not a JSON object); restore it from a copy.")
-    return record
-
-
-# ---------------------------------------------------------------------------------------------------- row files
-def read_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a CSV file, numbers as numbers (``[]`` when there is no file)."""
-    if not path.is_file():
-        return []
-    with open(path, newline="") as file:
-        return [{key: _number(value) for key, value in row.items()} for row in csv.DictReader(file)]
-
-
-def _number(value: str) -> Any:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return value
-    return int(number) if number.is_integer() and "." not in value and "e" not in value.lower() else number
-
-
-def write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
-    """Write rows as CSV (atomically: a kill during the write leaves the previous file)."""
-    keys = list(dict.fromkeys(key for row in rows for key in row))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=keys)
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write_text(path, text.getvalue())
-
-
-def same_row(row: dict[str, Any], other: dict[str, Any]) -> bool:
-    """Whether two evaluation rows hold the same values (as written to CSV and read back)."""
-    return {key: _number(str(value)) for key, value in row.items()} == {
-        key: _number(str(value)) for key, value in other.items()
-    }
-
-
-class RunLog:
-    """What a run says about itself (resumes, skipped checkpoints, rows that cannot be restored): printed, with the
-    run's name when it has one, and appended to its ``resume.log``.
-
-    :param folder: the run's folder
-    :param name: the run's name in printed lines (``""``: lines start with ``Note:``)
-    """
-
-    def __init__(self, folder: Path, name: str = "") -> None:
-        self.path = folder / RESUME_LOG
-        self.name = name
-
-    def __call__(self, message: str) -> None:
-        print(f"{self.name}: {message}" if self.name else f"Note: {message}", flush=True)
-        with open(self.path, "a") as file:
-            file.write(f"{utc_stamp()} {message}\n")
 
 
 # ---------------------------------------------------------------------------------------------------- evaluation
@@ -398,217 +175,48 @@ class RunEvalCallback(MultiAgentEvalCallback):
         self.next_eval = int(state.get("next_eval", self.grid_after(self.last_eval_timestep)))
 
 
-def split_rows(
-    path: Path, done_steps: int | None, log: Callable[[str], None]
-) -> tuple[list[dict[str, Any]], dict[int, dict[str, Any]]]:
-    """The evaluation rows a run keeps (made up to its checkpoint) and those it re-does (made after it, by a segment
-    that was interrupted), by agent-steps; ``evaluations.csv`` is rewritten with the kept rows.
-
-    :param path: the run's ``evaluations.csv``
-    :param done_steps: agent-steps of the checkpoint, ``None`` for a fresh start (every row is re-done)
-    :param log: the run's log
-    """
-    old_rows = read_rows(path)
-    rows = [row for row in old_rows if done_steps is not None and row["timesteps"] <= done_steps]
-    lost = {int(row["timesteps"]): row for row in old_rows if done_steps is None or row["timesteps"] > done_steps}
-    if lost:
-        since = "the start" if done_steps is None else "the checkpoint"
-        log(f"evaluations made after {since}, at {sorted(lost)} agent-steps, are re-done")
-    if old_rows:
-        write_rows(path, rows)
-    return rows, lost
-
-
-# ---------------------------------------------------------------------------------------------------- checkpoints
-def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
-    """The resumable checkpoints of a run folder, by agent-steps: ``rl_model_<steps>_steps.zip``, and a benchmark
-    run's ``checkpoint.zip`` of the older layout (its agent-steps read from the zip)."""
-    prefix, suffix = CHECKPOINT_NAME.split("{steps}")
-    found = numbered_paths(folder, prefix, suffix)
-    legacy = Path(folder) / LEGACY_CHECKPOINT
-    if legacy.is_file():
-        steps = saved_timesteps(legacy)
-        found.setdefault(steps if steps is not None else -1, legacy)
-    return found
-
-
-def saved_timesteps(path: Path) -> int | None:
-    """The agent-steps a saved model zip records (``num_timesteps`` in its ``data``), without loading it (``None``
-    when the zip cannot be read)."""
-    try:
-        with zipfile.ZipFile(path) as archive:
-            return int(json.loads(archive.read("data"))["num_timesteps"])
-    except Exception:  # a damaged zip: checkpoint_problem names the damage
-        return None
-
-
-def newest_loading_checkpoint(folder: Path, final_model: Path | None = None) -> tuple[Path | None, list[tuple[Path, str]]]:
-    """The newest checkpoint of a run folder that loads (``None``: none does), and the newer ones that do not, with
-    why (:func:`~sb3_saeir.common.run_state.checkpoint_problem`).
-
-    :param folder: the run's folder
-    :param final_model: the run's final model (``<task>.zip``): a resume point too when it holds a resume state (a
-        finished run's, written before its final evaluation) and is newer than the checkpoints
-    """
-    checkpoints = checkpoint_steps(folder)
-    if final_model is not None and final_model.is_file() and not checkpoint_problem(final_model):
-        steps = saved_timesteps(final_model)
-        if steps is not None and steps not in checkpoints and load_resume_state(final_model) is not None:
-            checkpoints[steps] = final_model
-    skipped: list[tuple[Path, str]] = []
-    for steps in sorted(checkpoints, reverse=True):
-        problem = checkpoint_problem(checkpoints[steps])
-        if not problem:
-            return checkpoints[steps], skipped
-        skipped.append((checkpoints[steps], problem))
-    return None, skipped
-
-
-def keep_damaged_checkpoints(skipped: list[tuple[Path, str]]) -> None:
-    """Move checkpoints that do not load aside (``<name>.damaged-<UTC time>``; nothing deleted), so that the run's
-    next checkpoints do not sit beside them (a folder in a checkpoint's name is renamed aside whole)."""
-    for path, _ in skipped:
-        if path.is_dir():
-            path.rename(unused_name(path, "damaged"))
-            continue
-        keep_damaged(path)
-        path.unlink()
-
-
-@dataclass(frozen=True)
-class ResumePoint:
-    """Where a run continues: its last checkpoint that loads and the checkpoint's resume state.
-
-    :param checkpoint: the checkpoint
-    :param state: its resume state (``None``: a plain model zip, resumed approximately)
-    :param skipped: the newer checkpoints that do not load, with why (the resume falls back past them)
-    """
-
-    checkpoint: Path
-    state: dict[str, Any] | None
-    skipped: tuple[tuple[Path, str], ...] = ()
-
-    @property
-    def steps(self) -> int:
-        """Agent-steps of the checkpoint."""
-        steps = self.state["num_timesteps"] if self.state is not None else saved_timesteps(self.checkpoint)
-        return int(steps or 0)
-
-    def total_timesteps(self, n_timesteps: int) -> int:
-        """The agent-step count at which the run ends: where its ``learn`` started (0, or a ``-i`` model's count)
-        plus its budget ``n_timesteps``."""
-        start = self.state["model"].get("_num_timesteps_at_start", 0) if self.state is not None else 0
-        return int(start) + n_timesteps
-
-
-# What <task>/args.yml and <task>/config.yml hold, for the message on a damaged one.
-RUN_FILES = {
-    "args.yml": "the command line that started the run, one 'option: value' line per option",
-    "config.yml": "the run's resolved hyperparameters, one 'key: value' line per key",
-}
-
-
-def read_run_file(path: Path) -> dict[str, Any]:
-    """A run's ``<task>/args.yml`` or ``<task>/config.yml``: a YAML mapping (``args.yml`` with an integer ``seed``).
-
-    :param path: the file
-    :raises ~sb3_saeir.config.ConfigError: naming the file, what is wrong with it and the fix
-    """
-    try:
-        content = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        problem = f"not valid YAML{where}: {getattr(error, 'problem', None) or error}"
-    else:
-        problem = ""
-        if not isinstance(content, dict) or not content:
-            problem = f"not a mapping of {path.stem}, but {type(content).__name__} {str(content)[:40]!r}"
-        elif path.name == "args.yml" and (isinstance(content.get("seed"), bool) or not isinstance(content.get("seed"), int)):
-            problem = f"no integer seed (seed: {content.get('seed')!r})"
-    if problem:
-        raise ConfigError(
-            f"--resume: {path} is damaged ({problem}). It holds {RUN_FILES[path.name]}: restore it from a copy, or "
-            f"write it again as another run's {path.name} (the run's own values), then resume; or start a new run "
-            "without --resume."
-        )
-    return content
-
-
-def stored_record(
-    folder: Path, algo: str, task: str, legacy_record: Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
-) -> dict[str, Any]:
-    """The settings record of the run in ``folder``: its ``spec.json``, or for a run of an older version its
-    ``<task>/args.yml`` and ``<task>/config.yml`` made into one by ``legacy_record``.
-
-    :param folder: the run's folder
-    :param algo: the method of the command
-    :param task: the task of the command (``<task>/`` holds the older files)
-    :param legacy_record: the record of an older run from its ``args.yml`` and ``config.yml``
-    :raises ~sb3_saeir.config.ConfigError: when the folder holds no run of this command, or its record is damaged
-    """
-    try:
-        record = read_spec_file(folder)
-    except ConfigError as error:
-        raise ConfigError(f"--resume: {error}") from None
-    if record is not None:
-        if (record.get("algo"), record.get("task")) != (algo, task):
-            raise ConfigError(
-                f"--resume: {folder} holds a run of {record.get('algo')} on {record.get('task')}: it is not a run of this "
-                "command."
-            )
-        return record
-    args_path = folder / task / "args.yml"
-    if not args_path.is_file():
-        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE} nor {task}/args.yml: it is not a run of this command.")
-    stored_args = read_run_file(args_path)
-    return legacy_record(stored_args, read_run_file(folder / task / "config.yml"))
-
-
+# ---------------------------------------------------------------------------------------------------- the run
 # ---------------------------------------------------------------------------------------------------- the run
 @dataclass
 class RunOutput:
-    """How a run shows itself while it trains.
+    """How a run shows itself while it trains (default: quietly, as the benchmark's runs).
 
-    :param formats: the logger's writers besides ``progress.csv`` (stdout, tensorboard)
+    :param command_line: a command line's run: SB3's stdout (``verbose`` >= 1) and tensorboard (the model's
+        ``tensorboard_log``) writers besides ``progress.csv``, the latter going on in the latest ``<tb_log_name>_<N>``
+        folder when the run or its model goes on (as SB3's ``reset_num_timesteps=False`` does); and the first Ctrl-C
+        writes a checkpoint and stops cleanly (main thread only)
+    :param verbose: the verbosity (>= 1: each evaluation printed too)
     :param progress_bar: SB3's progress bar
-    :param verbose: print each evaluation
-    :param stop_on_ctrl_c: the first Ctrl-C writes a checkpoint and stops cleanly (main thread only)
     :param callbacks: more callbacks of the caller (an ETA line, ...)
     """
 
-    formats: list[KVWriter] = field(default_factory=list)
-    progress_bar: bool = False
+    command_line: bool = False
     verbose: int = 0
-    stop_on_ctrl_c: bool = False
+    progress_bar: bool = False
     callbacks: list[BaseCallback] = field(default_factory=list)
 
+    def writers(self, model: Any, continued: bool) -> list[KVWriter]:
+        """The logger's writers besides ``progress.csv`` (none but for a command line's run).
 
-def command_output(model: Any, verbose: int, progress_bar: bool, continued: bool, callbacks: list[BaseCallback]) -> RunOutput:
-    """How a run of a command line shows itself: SB3's stdout (``verbose`` >= 1) and tensorboard (the model's
-    ``tensorboard_log``) writers, the latter going on in the latest ``<tb_log_name>_<N>`` folder when ``continued``
-    (as SB3's ``reset_num_timesteps=False`` does), the progress bar, Ctrl-C's checkpoint and the command's callbacks.
-
-    :param model: the run's model
-    :param verbose: the command's verbosity
-    :param progress_bar: SB3's progress bar
-    :param continued: the run or its model goes on (``--resume``, ``-i``)
-    :param callbacks: more callbacks (an ETA line, ...)
-    """
-    tb_log_name = inspect.signature(type(model).learn).parameters["tb_log_name"].default
-    sb3_logger = configure_logger(verbose, model.tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
-    formats = [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
-    return RunOutput(formats, progress_bar, verbose, True, callbacks)
+        :param model: the run's model
+        :param continued: the run or its model goes on (``--resume``, ``-i``)
+        """
+        if not self.command_line:
+            return []
+        tb_log_name = inspect.signature(type(model).learn).parameters["tb_log_name"].default
+        sb3_logger = configure_logger(self.verbose, model.tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
+        return [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
 
 
 class Run:
-    """One training run in its folder (this module's docstring lists the files).
+    """One training run in its folder (the files: ``docs/guide/training.md``, "The run folder").
 
-    Build it with a folder and a :class:`RunSpec`, then :meth:`open` it (checks the settings against the folder's
-    record, finds the resume point) and :meth:`start` it on a built experiment; :meth:`train` trains to the budget and
-    writes the final model and ``done.json``. ``python -m sb3_saeir.train`` and the benchmark use it the same way.
+    Build it with a folder and a :class:`~sb3_saeir.run_record.RunSpec`, then :meth:`execute` it with an
+    :class:`~sb3_saeir.experiment.Experiment`: the whole run, from the folder's lock to the final save. Its steps
+    (:meth:`open` or :meth:`check_resumable`, :meth:`make_env`, :meth:`check_settings`, :meth:`write_spec`,
+    :meth:`start`, :meth:`train`) are public for a caller that needs them one by one.
 
-    :param folder: the run's folder (created by the caller)
+    :param folder: the run's folder
     :param spec: the run's settings
     :param save_freq: agent-steps between checkpoints (0: at every rollout start)
     :param keep_checkpoints: checkpoints kept (the newest; ``None``: all, as SB3's ``CheckpointCallback``)
@@ -645,17 +253,98 @@ class Run:
         self.clock: SegmentClock | None = None
         self.callbacks: list[BaseCallback] = []
         self.output = RunOutput()
+        self.done: dict[str, Any] | None = None
+
+    # ------------------------------------------------------------------------------------------------ the whole run
+    def execute(
+        self,
+        experiment: Experiment,
+        build: Callable[[Experiment, VecEnv], object] | None = None,
+        resumed: dict[str, Any] | None = None,
+        by_path: bool = False,
+        lock: RunFolderLock | None = None,
+        output: RunOutput | None = None,
+        announce: Callable[[Run], None] | None = None,
+    ) -> Path:
+        """The whole run, holding the folder's lock: find where it continues (:meth:`check_resumable` for a run that
+        ``--resume`` continues, else :meth:`open`), make the training env (:meth:`make_env`), build or load the model
+        on it, refuse other settings than the record's (:meth:`check_settings`); then, nothing having been written
+        before, record the settings (:meth:`write_spec`), :meth:`start` and :meth:`train`. The experiment is closed at
+        the end, or when the run is refused.
+
+        :param experiment: the run's experiment (its model is built here, unless it has one: a model rl-zoo3 built)
+        :param build: builds (or loads) the model on the run's env, ``build(experiment, env)``; a bad setting raises.
+            Default: :meth:`~sb3_saeir.experiment.Experiment.build`, unless the experiment has a model
+        :param resumed: the settings record of the run that ``--resume`` continues
+            (:func:`~sb3_saeir.run_record.stored_record`); ``None``: a new run, or one that goes on from the checkpoint
+            its folder has, if any (the benchmark, after :meth:`check_budget`)
+        :param by_path: ``--resume`` gave the run's folder by its path (``-f`` is not compared)
+        :param lock: the folder's lock, when the caller holds it already (it read the run's record under it; it gives
+            it back); ``None``: taken here and given back at the end
+        :param output: how the run shows itself (default: quietly)
+        :param announce: called once the run is set up and checked, before anything is written (what a command says
+            about the run)
+        :return: the final model's path
+        :raises ~sb3_saeir.config.ConfigError: for a run that cannot be continued, a model that cannot be built, or
+            other settings than the record's
+        :raises ~sb3_saeir.common.run_lock.RunFolderInUseError: when another process trains the run
+        """
+        with ExitStack() as held:
+            if lock is None:
+                held.enter_context(RunFolderLock(self.folder))
+            self._set_up(experiment, build, resumed, by_path)
+            try:
+                if announce is not None:
+                    announce(self)
+                self.write_spec()
+                self.start(experiment, output)
+                return self.train()
+            finally:
+                experiment.close()
+
+    def _set_up(
+        self,
+        experiment: Experiment,
+        build: Callable[[Experiment, VecEnv], object] | None,
+        resumed: dict[str, Any] | None,
+        by_path: bool,
+    ) -> None:
+        """:meth:`execute`'s checks, before anything is written: the resume point, the env and the model (what cannot
+        be built is a :class:`~sb3_saeir.config.ConfigError`), the settings; the experiment is closed when one
+        refuses."""
+        try:
+            if resumed is not None:
+                self.check_resumable(resumed)
+            else:
+                self.open()
+            try:
+                env = self.make_env(experiment)
+                if build is not None:
+                    build(experiment, env)
+                elif experiment.model is None:
+                    experiment.build(env=env)
+            except (ValueError, TypeError, KeyError, zipfile.BadZipFile) as error:
+                if isinstance(error, ConfigError):
+                    raise
+                message = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
+                algo, task = self.spec.algo, self.spec.task
+                raise ConfigError(f"cannot build {algo} on {task} with these settings: {message}") from error
+            if resumed is not None:
+                self.check_settings(resumed, by_path)
+        except BaseException:
+            experiment.close()
+            raise
+
+    @property
+    def continued(self) -> bool:
+        """Whether the run or its model goes on (``--resume``, ``-i``): the tensorboard writer continues too."""
+        return self.resume is not None or self.continue_model
 
     # ------------------------------------------------------------------------------------------------ settings
     @property
-    def is_done(self) -> bool:
-        """Whether the run is finished (``done.json``)."""
-        return (self.folder / DONE_FILE).is_file()
-
-    @property
     def final_model(self) -> Path:
         """The run's final model, ``<task>.zip`` (with the resume state of its last step: :meth:`train`)."""
-        return self.folder / f"{self.spec.task}.zip"
+        return self.folder / FINAL_MODEL.format(task=self.spec.task)
 
     def check_budget(self, stored: dict[str, Any]) -> None:
         """Compare the command's budget with the run's record: the same, or larger (the run is trained longer, an
@@ -680,7 +369,7 @@ class Run:
         model); refuse a smaller budget than the record's (:meth:`check_budget`), a run with nothing to resume from,
         or a finished one whose budget the command does not raise.
 
-        :param stored: the run's settings record (:func:`stored_record`)
+        :param stored: the run's settings record (:func:`~sb3_saeir.run_record.stored_record`)
         :raises ~sb3_saeir.config.ConfigError: naming the run and the fix
         """
         self.check_budget(stored)
@@ -717,7 +406,7 @@ class Run:
         """Refuse to continue the run with other settings than its record's (one line per setting; ``-f`` is not
         compared for a run given by its folder's path; a larger budget is an extension, :meth:`check_budget`).
 
-        :param stored: the run's settings record (:func:`stored_record`)
+        :param stored: the run's settings record (:func:`~sb3_saeir.run_record.stored_record`)
         :param by_path: the run was given by its folder's path (``--resume FOLDER``)
         :raises ~sb3_saeir.config.ConfigError: naming what differs and the fix
         """
@@ -732,29 +421,29 @@ class Run:
 
     def write_spec(self) -> None:
         """Write ``spec.json`` (unless the folder has one), ``<task>/config.yml`` and ``<task>/args.yml``; for an
-        extension (:meth:`check_budget`), record it in ``spec.json`` (:func:`extension_record`) and keep the shorter
-        run's final model as ``<task>_<steps>_steps.zip`` (its ``done.json`` goes into the record)."""
+        extension (:meth:`check_budget`), record it in ``spec.json``
+        (:func:`~sb3_saeir.run_record.extension_record`) and keep the shorter run's final model as
+        ``<task>_<steps>_steps.zip`` (its ``done.json`` goes into the record)."""
         self.folder.mkdir(parents=True, exist_ok=True)
         if self.extended_from is not None and self.stored is not None:
             self._record_extension(self.stored)
         if not (self.folder / SPEC_FILE).is_file():
-            atomic_write_text(self.folder / SPEC_FILE, json.dumps(spec_record(self.spec), indent=2, sort_keys=True) + "\n")
+            write_spec_file(self.folder, spec_record(self.spec))
         params_path = self.folder / self.spec.task
-        if not (params_path / "config.yml").is_file():
+        if not (params_path / CONFIG_FILE).is_file():
             params_path.mkdir(exist_ok=True)
             save_run_config(params_path, self.spec.resolved_config(), self.command)
 
     def _record_extension(self, stored: dict[str, Any]) -> None:
-        done_path, final = self.folder / DONE_FILE, self.final_model
-        finished = json.loads(done_path.read_text()) if done_path.is_file() else None
+        final = self.final_model
+        finished = read_done_file(self.folder)
         if finished is not None and final.is_file():
-            steps = saved_timesteps(final)
-            kept = final.with_name(f"{self.spec.task}_{steps}_steps.zip")
+            kept = final.with_name(SHORTER_RUN_MODEL.format(task=self.spec.task, steps=saved_timesteps(final)))
             if not kept.exists():
                 shutil.copy2(final, kept)
         record = extension_record(stored, self.spec.n_timesteps, finished)
-        done_path.unlink(missing_ok=True)  # first: a run killed before the new record is a run not yet finished
-        atomic_write_text(self.folder / SPEC_FILE, json.dumps(record, indent=2, sort_keys=True) + "\n")
+        (self.folder / DONE_FILE).unlink(missing_ok=True)  # first: a run killed before the new record is not finished
+        write_spec_file(self.folder, record)
         self.log(f"trained longer: budget {self.extended_from:,} -> {self.spec.n_timesteps:,} agent-steps")
         self.stored, self.extended_from = record, None
 
@@ -771,8 +460,14 @@ class Run:
         self.resume = ResumePoint(checkpoint, load_resume_state(checkpoint), tuple(skipped)) if checkpoint else None
         return self.resume
 
-    def make_env(self, experiment: Experiment) -> MultiAgentVecMonitor:
-        """The run's training env: the experiment's, monitored into ``games.monitor.csv`` (continued on resume)."""
+    def make_env(self, experiment: Experiment) -> VecEnv:
+        """The run's training env: the experiment's, monitored into ``games.monitor.csv`` (continued on resume); or
+        the env of a model built elsewhere (rl-zoo3's, in the monitor of
+        :func:`~sb3_saeir.zoo.registration.games_to_agents`), whose monitor then continues its file on resume."""
+        if experiment.env is not None:
+            if isinstance(experiment.env, MultiAgentVecMonitor) and self.resume is not None:
+                experiment.env.append = True
+            return experiment.env
         return MultiAgentVecMonitor(
             experiment.make_env(),
             str(self.folder / MONITOR_PREFIX),
@@ -813,7 +508,8 @@ class Run:
         rollout = int(getattr(model, "n_steps", 1)) * experiment.env.num_envs
         expected_rows = state.get("progress_rows") if state is not None else None
         offset = (done_steps or 0) // rollout
-        model.set_logger(progress_logger(self.folder, done_steps, offset, self.output.formats, expected_rows, self.log))
+        writers = self.output.writers(model, self.continued)
+        model.set_logger(progress_logger(self.folder, done_steps, offset, writers, expected_rows, self.log))
         extras: dict[str, Any] = {}
         self.callbacks = []
         if self.spec.eval_freq > 0:
@@ -929,7 +625,7 @@ class Run:
     def _ctrl_c(self, checkpoints: RunCheckpointCallback) -> Iterator[None]:
         """With ``stop_on_ctrl_c``, in the main thread: the first Ctrl-C asks for a checkpoint at the next rollout
         start and a stop there; a second stops at once (``KeyboardInterrupt``)."""
-        if not self.output.stop_on_ctrl_c or threading.current_thread() is not threading.main_thread():
+        if not self.output.command_line or threading.current_thread() is not threading.main_thread():
             yield
             return
 
@@ -959,8 +655,8 @@ class Run:
         steps = model.num_timesteps
         self.clock.tick(steps)
         if steps >= self.target_timesteps:
-            summary = {"wall_s": round(self.clock.total_s, 1), "segments": len(self.clock.segments), "timesteps": steps}
-            atomic_write_text(self.folder / DONE_FILE, json.dumps(summary))
+            self.done = done_record(self.clock.total_s, len(self.clock.segments), steps)
+            write_done_file(self.folder, self.done)
             if self.keep_checkpoints is not None:
                 for checkpoint in checkpoint_steps(self.folder).values():
                     checkpoint.unlink(missing_ok=True)
@@ -992,23 +688,3 @@ class Run:
             if writer is not None:
                 with suppress(OSError, ValueError):
                     writer.close()
-
-
-def save_run_config(params_path: Path, config: dict[str, Any], command: dict[str, Any]) -> None:
-    """``<task>/config.yml`` (the resolved hyperparameters) and ``<task>/args.yml`` (the command), as rl-zoo3 writes
-    them, each atomically.
-
-    :param params_path: the run's ``<task>/`` folder
-    :param config: the resolved hyperparameters
-    :param command: the command's options
-    """
-    atomic_write_text(params_path / "config.yml", yaml.safe_dump(config_record(config), sort_keys=True))
-    atomic_write_text(params_path / "args.yml", yaml.safe_dump(dict(sorted(command.items()))))
-
-
-def config_record(hyperparams: dict[str, Any]) -> dict[str, Any]:
-    """The resolved hyperparameters as ``<task>/config.yml`` holds them (objects as their ``str``)."""
-    return {
-        key: (str(value) if not isinstance(value, (int, float, str, bool, list, dict, type(None))) else value)
-        for key, value in sorted(hyperparams.items())
-    }

@@ -1,28 +1,10 @@
 """rl-zoo style training from YAML configs: ``python -m sb3_saeir.train --algo saeir_ppo --task cn-sparse-n3``.
 
-Runs go into rl-zoo's folders, ``<log-folder>/<algo>/<task>_<run>/``; the inside of a run folder is a
-:class:`~sb3_saeir.run.Run`'s (the same as the benchmark's; :mod:`sb3_saeir.run` lists the files): ``spec.json``,
-``<task>/config.yml`` and ``<task>/args.yml``, checkpoints ``rl_model_<steps>_steps.zip`` (every ``--save-freq``
-agent-steps), ``evaluations.csv``, ``evaluations.npz`` and ``best_model.zip`` (evaluations at the start, every
-``--eval-freq`` agent-steps on the grid and at the end), ``progress.csv``, ``games.monitor.csv``, ``segments.json``,
-``resume.log``, and ``<task>.zip`` with ``done.json`` when finished; tensorboard events go under
-``--tensorboard-log``.
-
-A new run number is used for every run, so nothing already saved is overwritten; the run folder is created
-exclusively, so runs started together get different numbers. Every file is replaced atomically
-(:mod:`sb3_saeir.common.atomic`). ``--optimize`` tunes hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
-
-**Resuming.** The checkpoints are resumable: each holds, besides the model, everything the rest of the run depends
-on (:mod:`sb3_saeir.common.run_state`). The same command with ``--resume`` continues the latest run of that algo and
-task (``--resume N``: run ``N``; ``--resume FOLDER``: the run in that folder, e.g. one moved elsewhere) from its
-newest checkpoint that loads (those that do not are skipped and kept aside, saying so), in its own folder, and ends
-as the run would have ended uninterrupted: same parameters, same ``progress.csv`` rows (but the ``time/`` columns),
-same evaluations. It refuses a command whose settings differ from the run's (``spec.json``; for a run of an older
-version, ``<task>/args.yml`` and ``<task>/config.yml``), naming them. The first Ctrl-C finishes the rollout and
-update in progress, writes a checkpoint and stops (a second Ctrl-C stops at once); a killed run resumes from its last
-checkpoint; a full disk stops it with one line naming the checkpoint to resume from. ``-i`` keeps its meaning:
-continue a saved model with a fresh state (new run, new generators, fresh env). See ``docs/guide/training.md``,
-"Stopping and resuming a run".
+A run goes into rl-zoo's folders, ``<log-folder>/<algo>/<task>_<run>/`` (a new run number each time, the folder
+created exclusively), and is a :class:`~sb3_saeir.run.Run` (:meth:`~sb3_saeir.run.Run.execute`): this module builds
+what differs, the settings of the command, the experiment and its model (or the ``-i`` model loaded). The files of a
+run folder: ``docs/guide/training.md``, "The run folder"; ``--resume``, Ctrl-C, a full disk and training a run longer:
+its "Stopping and resuming a run". ``--optimize`` tunes hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
 """
 
 from __future__ import annotations
@@ -31,55 +13,42 @@ import argparse
 import inspect
 import sys
 import time
-import zipfile
-from contextlib import AbstractContextManager, nullcontext
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from stable_baselines3.common.utils import set_random_seed
+from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_saeir.command_line import (
+    DOUBLE_BUFFERED_FLAGS,
+    DRAW_SEED,
+    OneLineParser,
+    check_arguments,
+    count,
+    one_line_warnings,
+    resolve_hyperparams,
+    resume_target,
+)
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.utils import set_num_threads
-from sb3_saeir.config import (
-    ALGOS,
-    CONFIG_KEYS,
-    DOUBLE_BUFFERED_FLAGS,
-    DRAW_SEED,
-    ConfigError,
-    OneLineParser,
-    check_arguments,
-    check_hyperparams,
-    count,
-    one_line_warnings,
-    parse_params,
-    parse_policy_kwargs,
-    resolve_hyperparams,
-    resume_target,
-    valid_keys,
-)
+from sb3_saeir.config import ALGOS, ConfigError, parse_params, parse_policy_kwargs
 from sb3_saeir.envs import list_tasks
 from sb3_saeir.experiment import Experiment, claimed_run_folder, config_budget, find_run_folder, model_method_mismatch
-from sb3_saeir.run import Run, RunSpec, RunStoppedError, command_output, config_record, stored_record
+from sb3_saeir.run import Run, RunOutput, RunStoppedError
+from sb3_saeir.run_record import RunSpec, config_record, stored_record
 
 __all__ = [
-    "CONFIG_KEYS",
     "INTERRUPTED_EXIT_STATUS",
-    "BudgetEstimate",
-    "ConfigError",
     "RunInterruptedError",
-    "RunStoppedError",
-    "check_arguments",
-    "check_hyperparams",
+    "legacy_train_record",
     "main",
     "make_parser",
-    "parse_params",
     "run_spec",
     "train",
-    "valid_keys",
 ]
 
 
@@ -178,23 +147,14 @@ def train(args: argparse.Namespace) -> Path:
         if mismatch:
             raise ConfigError(f"--trained-agent {mismatch}")
     set_num_threads(args.num_threads)
-    n_timesteps = config_budget(hyperparams)
-    folder: AbstractContextManager[Path]
-    stored: dict[str, Any] | None = None
-    locks: list[RunFolderLock] = []
-    try:
-        if args.resume is not None:
-            run_folder = find_run_folder(args.log_folder, args.algo, args.task, args.resume)
-            locks.append(RunFolderLock(run_folder).acquire())  # before anything is read for the run or written
-            stored = stored_record(run_folder, args.algo, args.task, legacy_train_record)
-            seed, folder = resumed_seed(args.seed, stored, run_folder), nullcontext(run_folder)
-        else:
-            seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
-            folder = claimed_run_folder(args.log_folder, args.algo, args.task)
-        return _train_in(folder, args, hyperparams, seed, n_timesteps, stored, locks)
-    finally:
-        for held in locks:
-            held.release()
+    if args.resume is None:
+        seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
+        with claimed_run_folder(args.log_folder, args.algo, args.task) as folder:  # removed if the command is refused
+            return _execute(args, hyperparams, folder, seed)
+    folder = find_run_folder(args.log_folder, args.algo, args.task, args.resume)
+    with RunFolderLock(folder) as lock:  # before anything is read for the run or written
+        stored = stored_record(folder, args.algo, args.task, legacy_train_record)
+        return _execute(args, hyperparams, folder, resumed_seed(args.seed, stored, folder), stored, lock)
 
 
 def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
@@ -215,78 +175,50 @@ def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
     return stored_seed
 
 
-def _train_in(
-    folder: AbstractContextManager[Path],
+def _execute(
     args: argparse.Namespace,
     hyperparams: dict[str, Any],
+    folder: Path,
     seed: int,
-    n_timesteps: int,
-    stored: dict[str, Any] | None,
-    locks: list[RunFolderLock],
+    stored: dict[str, Any] | None = None,
+    lock: RunFolderLock | None = None,
 ) -> Path:
-    """:func:`train` in the run's folder: the one resumed, whose lock is in ``locks``, or a new one claimed, whose lock
-    is taken here and added to ``locks`` (and removed with the folder when the set-up fails)."""
-    with folder as save_path:  # a new run's folder is removed again if the set-up fails
-        if not locks:
-            locks.append(RunFolderLock(save_path).acquire())
-        try:
-            experiment, run = _set_up(save_path, args, hyperparams, seed, n_timesteps, stored)
-        except BaseException:
-            if stored is None:  # the new run's folder goes
-                locks.pop().release()
-            raise
-    announce_run(args, experiment, run, n_timesteps, seed)
-    return _run(experiment, run, args, n_timesteps, save_path)
-
-
-def _set_up(
-    save_path: Path,
-    args: argparse.Namespace,
-    hyperparams: dict[str, Any],
-    seed: int,
-    n_timesteps: int,
-    stored: dict[str, Any] | None,
-) -> tuple[Experiment, Run]:
-    """The run's experiment, built (or its model loaded), and the run, checked against its record when resumed."""
+    """:func:`train`'s run in ``folder``: the experiment, the run's settings and how its model is built, then
+    :meth:`~sb3_saeir.run.Run.execute` (a resumed run with its ``stored`` record, under the ``lock`` it was read with).
+    """
+    n_timesteps = config_budget(hyperparams)
     set_random_seed(seed)
-    experiment = Experiment(args.algo, args.task, hyperparams, seed=seed, log_folder=save_path)
+    experiment = Experiment(args.algo, args.task, hyperparams, seed=seed)
     run = Run(
-        save_path,
+        folder,
         run_spec(args, seed, n_timesteps, experiment.n_games, {}),
         save_freq=args.save_freq if args.save_freq > 0 else sys.maxsize,  # never but on Ctrl-C
         command={**vars(args), "seed": seed},
         continue_model=bool(args.trained_agent),
     )
-    if stored is not None:
-        run.check_resumable(stored)
-    build_experiment(experiment, args, run)
-    run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))
-    if stored is not None:
-        try:
-            run.check_settings(stored, by_path=isinstance(args.resume, Path))
-        except ConfigError:
-            experiment.close()
-            raise
-    return experiment, run
 
+    def build(experiment: Experiment, env: VecEnv) -> None:
+        build_model(experiment, env, args)
+        run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))  # what spec.json records
 
-def _run(experiment: Experiment, run: Run, args: argparse.Namespace, n_timesteps: int, save_path: Path) -> Path:
-    """Train the run set up by :func:`_set_up`; returns its folder."""
-    try:
-        run.write_spec()
-        start = time.time()
-        continued = run.resume is not None or bool(args.trained_agent)
-        assert experiment.model is not None
-        output = command_output(experiment.model, args.verbose, args.progress, continued, [BudgetEstimate(n_timesteps)])
-        run.start(experiment, output)
-        model_path = run.train()
-        print(f"Saved {model_path} after {time.time() - start:.0f} s")
-        if run.checkpoints is not None and run.checkpoints.stopped_at is not None:
-            print(f"Stopped at the checkpoint {run.checkpoints.stopped_at}: the same command with --resume continues it.")
-            raise RunInterruptedError(save_path)
-    finally:
-        experiment.close()
-    return save_path
+    output = RunOutput(
+        command_line=True, verbose=args.verbose, progress_bar=args.progress, callbacks=[BudgetEstimate(n_timesteps)]
+    )
+    model_path = run.execute(
+        experiment,
+        build,
+        resumed=stored,
+        by_path=isinstance(args.resume, Path),
+        lock=lock,
+        output=output,
+        announce=lambda run: announce_run(args, experiment, run, n_timesteps, seed),
+    )
+    assert run.clock is not None and run.checkpoints is not None
+    print(f"Saved {model_path} after {time.time() - run.clock.start:.0f} s")
+    if run.checkpoints.stopped_at is not None:
+        print(f"Stopped at the checkpoint {run.checkpoints.stopped_at}: the same command with --resume continues it.")
+        raise RunInterruptedError(folder)
+    return folder
 
 
 def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_timesteps: int, seed: int) -> None:
@@ -307,31 +239,22 @@ def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_t
     print(f"Log folder: {run.folder}")
 
 
-def build_experiment(experiment: Experiment, args: argparse.Namespace, run: Run) -> None:
-    """Build the run's training env (:meth:`~sb3_saeir.run.Run.make_env`) and the model on it (or load
-    ``--trained-agent`` onto it); a bad setting becomes a :class:`~sb3_saeir.config.ConfigError`.
+def build_model(experiment: Experiment, env: VecEnv, args: argparse.Namespace) -> None:
+    """Build the model of the command on the run's training env, or load ``--trained-agent`` onto it.
 
     :param experiment: the run's experiment
+    :param env: the run's training env (:meth:`~sb3_saeir.run.Run.make_env`)
     :param args: the command
-    :param run: the run
     """
     # -tb, else the config's tensorboard_log (passing None would switch the config's off)
     tensorboard_log = args.tensorboard_log
     if tensorboard_log is None:
         tensorboard_log = experiment.hyperparams.get("tensorboard_log")
-    try:
-        env = run.make_env(experiment)
-        if args.trained_agent and args.resume is None:
-            experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
-            record_loaded_network(experiment, args.trained_agent, parse_params(args.params))
-        else:
-            experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
-    except (ValueError, TypeError, KeyError, zipfile.BadZipFile, ConfigError) as error:
-        experiment.close()
-        if isinstance(error, ConfigError):
-            raise
-        message = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
-        raise ConfigError(f"cannot build {args.algo} on {args.task} with these settings: {message}") from error
+    if args.trained_agent and args.resume is None:
+        experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
+        record_loaded_network(experiment, args.trained_agent, parse_params(args.params))
+    else:
+        experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
 
 
 def record_loaded_network(experiment: Experiment, path: str, params: dict[str, Any]) -> None:

@@ -188,7 +188,7 @@ def write_evaluations(tmp_path, env):
 
 
 def write_args(tmp_path, env):
-    from sb3_saeir.run import save_run_config
+    from sb3_saeir.run_record import save_run_config
 
     save_run_config(tmp_path, {"n_steps": 10}, {"seed": 1, "params": None})
     path = tmp_path / "args.yml"
@@ -298,7 +298,7 @@ def test_model_save_keeps_sb3s_path_rules(tmp_path, env):
 
 
 def test_args_file_is_still_plain_yaml(tmp_path):
-    from sb3_saeir.run import save_run_config
+    from sb3_saeir.run_record import save_run_config
 
     save_run_config(tmp_path, {"n_steps": 10}, {"seed": 3, "algo": "mappo"})
     assert yaml.safe_load((tmp_path / "args.yml").read_text()) == {"algo": "mappo", "seed": 3}

@@ -17,7 +17,7 @@ from sb3_saeir.benchmark import parse_seeds
 from sb3_saeir.config import ConfigError, load_hyperparams, parse_params
 from sb3_saeir.enjoy import main as enjoy_main
 from sb3_saeir.train import main as train_main
-from sb3_saeir.zoo import main as zoo_main
+from sb3_saeir.zoo.launcher import main as zoo_main
 
 TASK = "cn-sparse-n3"
 TRAIN = ["--algo", "saeir_ppo", "--n-games", "2", "-n", "100", "--eval-freq", "0", "--verbose", "0"]
@@ -269,7 +269,7 @@ def test_raw_library_errors_of_benchmark(root, capsys, extra, message):
 
 
 def test_count_options_take_rl_zoo_numbers():
-    from sb3_saeir.config import count
+    from sb3_saeir.command_line import count
 
     assert count("100") == 100 and count("1e6") == 1_000_000 and count("2.5e5") == 250_000
 
@@ -432,7 +432,7 @@ def test_entropy_plot_of_a_folder_that_is_no_saeir_run(root, capsys, folder, mes
 
 
 def test_more_env_workers_than_cores_warns_in_one_line(root, capsys, monkeypatch):
-    import sb3_saeir.common.vec_env as vec_env_module
+    import sb3_saeir.common.vec_env.factory as vec_env_module
 
     monkeypatch.setattr(vec_env_module, "usable_cores", lambda: 1)
     argv = ["--algo", "mappo", "--n-games", "2", "-n", "60", "--eval-freq", "0", "--verbose", "0", "-f", "logs"]
@@ -447,7 +447,7 @@ def test_more_env_workers_than_cores_warns_in_one_line(root, capsys, monkeypatch
 
 def test_zoo_enjoy_replays_without_a_window_by_default(capsys):
     """rl_zoo3.enjoy asks for render_mode='human', which the tasks do not have: it ended in a traceback."""
-    from sb3_saeir.zoo import prepare_enjoy_args
+    from sb3_saeir.zoo.launcher import prepare_enjoy_args
 
     assert "--no-render" in prepare_enjoy_args(["--algo", "mappo", "--env", TASK, "-n", "10"])
     assert "--no-render added" in capsys.readouterr().out

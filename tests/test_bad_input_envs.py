@@ -316,7 +316,7 @@ def test_numpy_integer_seed_of_the_vec_env(task):
 # ----------------------------------------------------------------------------- worker processes
 @pytest.mark.parametrize("cores, num_cpus, n_games", [(1, 2, 2), (2, 4, 3)])
 def test_more_workers_than_cores_warns(monkeypatch, cores, num_cpus, n_games):
-    import sb3_saeir.common.vec_env as vec_env_module
+    import sb3_saeir.common.vec_env.factory as vec_env_module
 
     monkeypatch.setattr(vec_env_module, "usable_cores", lambda: cores)
     with warnings.catch_warnings(record=True) as caught:
@@ -338,7 +338,7 @@ UNGUARDED_SCRIPTS = {
     "spawn": (
         "from gymnasium import spaces\n"
         "import numpy as np\n"
-        "from sb3_saeir.common.game_workers import GameWorkerPool\n"
+        "from sb3_saeir.common.vec_env.workers import GameWorkerPool\n"
         "from tests.toy_envs import ToyMeetEnv\n"
         "box = spaces.Box(0.0, 1.0, (2,), np.float32)\n"
         "pool = GameWorkerPool(ToyMeetEnv, 2, 2, 3, box, spaces.Discrete(3), start_method='spawn')\n"

@@ -7,7 +7,7 @@ from gymnasium import spaces
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
-from sb3_saeir.common.torch_layers import ScaleCritic
+from sb3_saeir.common.torch_layers import HypergraphScaleCritic
 
 
 def make_buffer(n_steps=7, n_games=2, n_agents=3, n_scales=2, chunk=3):
@@ -144,18 +144,18 @@ def test_standardized_advantages_per_scale():
 
 
 class GroupRecorder:
-    """Records the critic inputs of every ScaleCritic call during training."""
+    """Records the critic inputs of every HypergraphScaleCritic call during training."""
 
     def __init__(self, monkeypatch):
         self.calls = []
-        original = ScaleCritic.forward
+        original = HypergraphScaleCritic.forward
 
         def forward(critic, obs, hidden, episode_starts, gumbel_noise=True, gumbel_uniform=None):
             if critic.training:
                 self.calls.append(obs.detach().numpy().copy())
             return original(critic, obs, hidden, episode_starts, gumbel_noise=gumbel_noise, gumbel_uniform=gumbel_uniform)
 
-        monkeypatch.setattr(ScaleCritic, "forward", forward)
+        monkeypatch.setattr(HypergraphScaleCritic, "forward", forward)
 
 
 def test_every_training_hypergraph_is_one_game_at_one_step(monkeypatch):

@@ -18,7 +18,7 @@ from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common import compilation
 from sb3_saeir.common.buffers import split_by_valid_length
 from sb3_saeir.config import check_hyperparams, load_hyperparams, parse_params
-from sb3_saeir.mappo.mappo import scale_advantage_weights
+from sb3_saeir.mappo.losses import scale_advantage_weights
 from tests.test_save_load import deterministic_actions, observation_sequence
 
 needs_compiler = pytest.mark.skipif(compilation.find_cpp_compiler() is None, reason="no C++ compiler for inductor")
@@ -198,7 +198,7 @@ def test_compile_flag_resume_and_loading_for_more_training(tmp_path):
     """``--compile on`` sets the config's ``compile``; it may differ at ``--resume``; the config's value reaches a
     model loaded to continue training (``-i``, ``--resume``), since it is not saved with the model."""
     from sb3_saeir.experiment import Experiment
-    from sb3_saeir.run import config_record, spec_differences, spec_record
+    from sb3_saeir.run_record import config_record, spec_differences, spec_record
     from sb3_saeir.train import make_parser, resolve_hyperparams, run_spec
 
     command = ["--algo", "mappo", "--task", "cn-sparse-n3"]

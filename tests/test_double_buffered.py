@@ -7,8 +7,8 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
-from sb3_saeir.common.game_workers import GameWorkerError
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
+from sb3_saeir.common.vec_env.workers import GameWorkerError
 from tests.toy_envs import FailingMeetEnv, JitteryMeetEnv, SlowMeetEnv, ToyMeetEnv
 
 BUFFER_FIELDS = ("observations", "actions", "rewards", "episode_starts", "values", "log_probs", "returns", "advantages")
@@ -115,7 +115,7 @@ def test_stop_in_a_rollout_drains_the_groups_and_resets_at_the_next_learn():
     model = MAPPO("MAPPOPolicy", env, n_steps=10, n_epochs=1, double_buffered=True, policy_kwargs=dict(hidden_size=8))
     model.learn(10 * env.num_envs, callback=StopAtStep(4))
     assert model.num_timesteps == 4 * env.num_envs
-    assert model._last_obs is None and not env.venv.pool.busy
+    assert model._last_obs is None and not env.pool.busy
     model.learn(10 * env.num_envs, reset_num_timesteps=False)
     assert model.num_timesteps == 14 * env.num_envs
     env.close()
@@ -134,7 +134,7 @@ def test_option_saved_and_models_saved_without_it_load_with_the_default(tmp_path
 
 def test_worker_error_in_a_double_buffered_rollout_is_raised_and_ends_the_workers():
     env = make_multiagent_vec_env(FailingMeetEnv, n_games=4, seed=0, num_cpus=2)
-    processes = list(env.venv.pool.processes)
+    processes = list(env.pool.processes)
     model = MAPPO("MAPPOPolicy", env, n_steps=10, double_buffered=True, policy_kwargs=dict(hidden_size=8))
     with pytest.raises(GameWorkerError, match="ValueError: the toy game broke at step 3"):
         model.learn(10 * env.num_envs)
@@ -146,12 +146,12 @@ def test_ctrl_c_in_a_double_buffered_rollout_leaves_the_workers_to_close(ctrl_c)
     """SIGINT to the whole process group during a rollout: learn raises KeyboardInterrupt after waiting for the steps
     in flight; the workers (which ignore SIGINT) end cleanly when the env is closed."""
     env = make_multiagent_vec_env(SlowMeetEnv, n_games=4, seed=0, num_cpus=2)
-    processes = list(env.venv.pool.processes)
+    processes = list(env.pool.processes)
     model = MAPPO("MAPPOPolicy", env, n_steps=10, double_buffered=True, policy_kwargs=dict(hidden_size=8))
     ctrl_c(processes, 0.3)
     with pytest.raises(KeyboardInterrupt):
         model.learn(100 * env.num_envs)
-    assert all(process.is_alive() for process in processes) and not env.venv.pool.busy
+    assert all(process.is_alive() for process in processes) and not env.pool.busy
     assert model._last_obs is None
     env.close()
     assert [process.exitcode for process in processes] == [0, 0]

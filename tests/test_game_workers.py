@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.common.game_workers import GameWorkerError, split_games
+from sb3_saeir.common.vec_env.workers import GameWorkerError, split_games
 from tests.toy_envs import DyingMeetEnv, FailingMeetEnv, JitteryMeetEnv, SlowMeetEnv, ToyMeetEnv
 
 
@@ -126,7 +126,7 @@ def test_lockstep_step_refused_while_groups_step():
 def test_worker_error_or_death_names_the_worker_and_closes_the_pool(game, n_games, good_steps, message):
     env = make_multiagent_vec_env(game, n_games=n_games, seed=0, num_cpus=2)
     env.reset()
-    processes = list(env.venv.pool.processes)
+    processes = list(env.pool.processes)
     actions = np.zeros(env.num_envs, dtype=np.int64)
     for _ in range(good_steps):
         env.step(actions)
@@ -141,7 +141,7 @@ def test_worker_error_or_death_names_the_worker_and_closes_the_pool(game, n_game
 def test_close_ends_workers_also_with_a_step_in_flight():
     env = make_multiagent_vec_env(JitteryMeetEnv, n_games=4, seed=0, num_cpus=2)
     env.reset()
-    processes = list(env.venv.pool.processes)
+    processes = list(env.pool.processes)
     env.step_group_async(1, np.zeros(6, dtype=np.int64))
     env.close()
     assert [process.exitcode for process in processes] == [0, 0]
@@ -153,7 +153,7 @@ def test_ctrl_c_interrupts_the_parent_and_leaves_workers_to_close(ctrl_c):
     KeyboardInterrupt, the workers ignore it and end cleanly when the env is closed."""
     env = make_multiagent_vec_env(SlowMeetEnv, n_games=2, seed=0, num_cpus=2)
     env.reset()
-    processes = list(env.venv.pool.processes)
+    processes = list(env.pool.processes)
     ctrl_c(processes, 0.1)
     with pytest.raises(KeyboardInterrupt):
         for _ in range(100):  # 5 s of steps; interrupted after 0.1 s

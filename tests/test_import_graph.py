@@ -1,4 +1,5 @@
-"""The package's import graph: no circle of modules, and ``sb3_saeir.common`` imports only ``sb3_saeir.common``.
+"""The package's import graph: no circle of modules, ``sb3_saeir.common`` imports only ``sb3_saeir.common``, and the
+env layer (``sb3_saeir.common.vec_env``) reaches none of the algorithm's modules.
 
 Every ``sb3_saeir/**/*.py`` is parsed with :mod:`ast`; every ``import`` / ``from ... import`` of a ``sb3_saeir``
 module counts, at module level or inside a function (relative imports resolved). ``from pkg import name`` is an
@@ -20,6 +21,24 @@ PACKAGE = "sb3_saeir"
 PACKAGE_ROOT = Path(sb3_saeir.__file__).parent
 # Every module under this package may import only modules under it.
 SELF_CONTAINED = "sb3_saeir.common"
+# The env layer, and the algorithm's modules it must not reach, directly or through other modules (package prefixes).
+ENV_LAYER = "sb3_saeir.common.vec_env"
+ALGORITHM_MODULES = (
+    "sb3_saeir.common.policies",
+    "sb3_saeir.common.buffers",
+    "sb3_saeir.common.checks",
+    "sb3_saeir.mappo",
+    "sb3_saeir.saeir_ppo",
+    "sb3_saeir.intrinsic",
+    "sb3_saeir.config",
+    "sb3_saeir.command_line",
+    "sb3_saeir.run",
+    "sb3_saeir.run_record",
+    "sb3_saeir.experiment",
+    "sb3_saeir.train",
+    "sb3_saeir.benchmark",
+    "sb3_saeir.zoo",
+)
 
 Graph = dict[str, set[str]]
 
@@ -145,6 +164,30 @@ def outside_imports(graph: Graph, package: str) -> dict[str, set[str]]:
     return {module: targets for module, targets in outside.items() if targets}
 
 
+def forbidden_paths(graph: Graph, package: str, forbidden: tuple[str, ...]) -> dict[str, list[str]]:
+    """The import chains from modules under ``package`` to modules under any of ``forbidden``.
+
+    :param graph: module -> the modules it imports
+    :param package: the dotted name of the subpackage whose imports are checked
+    :param forbidden: dotted names of the modules (and packages) it must not reach
+    :return: module of ``package`` -> the shortest chain of imports from it to a forbidden module (ending with that
+        module), only for modules that reach one
+    """
+    found: dict[str, list[str]] = {}
+    for start in sorted(module for module in graph if is_in_package(module, package)):
+        seen, queue = {start}, [[start]]
+        while queue:  # breadth first: the shortest chain
+            path = queue.pop(0)
+            if any(is_in_package(path[-1], name) for name in forbidden):
+                found[start] = path
+                break
+            for target in sorted(graph.get(path[-1], ())):
+                if target not in seen:
+                    seen.add(target)
+                    queue.append([*path, target])
+    return found
+
+
 def test_graph_sees_every_kind_of_import() -> None:
     source = textwrap.dedent(
         """
@@ -175,6 +218,28 @@ def test_package_has_no_import_cycle() -> None:
 def test_common_imports_only_common() -> None:
     outside = outside_imports(import_graph(), SELF_CONTAINED)
     assert not outside, f"{SELF_CONTAINED} imports modules outside it: {outside}"
+
+
+def test_forbidden_paths_follow_imports_through_other_modules() -> None:
+    graph = {
+        "sb3_saeir.common.vec_env.a": {"sb3_saeir.common.utils"},
+        "sb3_saeir.common.vec_env.b": {"sb3_saeir.common.registry"},
+        "sb3_saeir.common.registry": {"sb3_saeir.mappo.mappo"},
+        "sb3_saeir.common.utils": set(),
+    }
+    found = forbidden_paths(graph, "sb3_saeir.common.vec_env", ("sb3_saeir.mappo",))
+    assert found == {
+        "sb3_saeir.common.vec_env.b": ["sb3_saeir.common.vec_env.b", "sb3_saeir.common.registry", "sb3_saeir.mappo.mappo"]
+    }
+    assert forbidden_paths(graph, "sb3_saeir.common.vec_env", ("sb3_saeir.run",)) == {}
+
+
+def test_env_layer_reaches_no_algorithm_module() -> None:
+    graph = import_graph()
+    assert any(is_in_package(module, ENV_LAYER) for module in graph), f"{ENV_LAYER} not found"
+    found = forbidden_paths(graph, ENV_LAYER, ALGORITHM_MODULES)
+    chains = {module: " -> ".join(path) for module, path in found.items()}
+    assert not found, f"the env layer imports the algorithm's modules: {chains}"
 
 
 def test_importing_common_alone_registers_the_packaged_tasks() -> None:

@@ -13,8 +13,6 @@ from sb3_saeir.intrinsic import (
     SAEIRCallback,
     register_intrinsic_reward,
 )
-from sb3_saeir.mappo import mappo
-from sb3_saeir.saeir_ppo import saeir_ppo
 
 
 @pytest.fixture
@@ -36,7 +34,6 @@ def my_bonus():
 
 def test_the_package_bonuses_register_themselves():
     assert INTRINSIC_REWARDS == {"saeir": SAEIRCallback, "rnd": RNDCallback, "elign": ElignCallback}
-    assert mappo.INTRINSIC_REWARDS is INTRINSIC_REWARDS and saeir_ppo.INTRINSIC_REWARDS is INTRINSIC_REWARDS
 
 
 def test_a_registered_bonus_is_used_by_name(env, tiny_kwargs, my_bonus):

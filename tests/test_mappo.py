@@ -10,6 +10,7 @@ from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.policies import MAPPOPolicy, SNMAPPOPolicy
 from sb3_saeir.common.torch_layers import RecurrentValueCritic
 from sb3_saeir.intrinsic import saeir_bonus
+from sb3_saeir.mappo.losses import clipped_value_loss
 
 TINY_KWARGS = dict(n_steps=10, n_epochs=1)
 
@@ -121,6 +122,19 @@ def test_sn_policy_default_and_save_load(env, tmp_path):
     loaded = MAPPO.load(tmp_path / "sn.zip", env=env)
     np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0])
     assert loaded.policy.spectral_norm == ("output",)
+
+
+def test_clipped_value_loss_hand_values():
+    """MAPPO's value loss on errors either side of the Huber delta (10), without and with value clipping (0.2):
+    Huber ``0.5 e^2`` up to delta, ``delta * (|e| - delta / 2)`` beyond; clipped, the larger of the losses of ``v``
+    and of ``v_old + clamp(v - v_old, -0.2, 0.2)``."""
+    values = th.tensor([3.0, -12.0, 0.9, 14.0])
+    old_values = th.tensor([3.0, -12.0, 0.0, 0.0])
+    returns = th.tensor([0.0, 0.0, 1.0, 15.0])  # errors -3, 12, 0.1, 1; clipped errors -3, 12, 0.8, 14.8
+    np.testing.assert_allclose(clipped_value_loss(values, old_values, returns, None), [4.5, 70.0, 0.005, 0.5], rtol=1e-6)
+    np.testing.assert_allclose(clipped_value_loss(values, old_values, returns, 0.2), [4.5, 70.0, 0.32, 98.0], rtol=1e-6)
+    mse = clipped_value_loss(values, old_values, returns, 0.2, loss="mse")
+    np.testing.assert_allclose(mse, [4.5, 72.0, 0.32, 109.52], rtol=1e-6)
 
 
 def test_bad_critic_options():

@@ -16,7 +16,8 @@ from stable_baselines3.common.monitor import load_results
 
 from sb3_saeir import GroupedVecEnv, make_multiagent_vec_env
 from sb3_saeir.config import ALGOS
-from sb3_saeir.zoo import GameMonitor, games_to_agents, prepare_enjoy_args, prepare_train_args, register_algorithms
+from sb3_saeir.zoo import GameMonitor, games_to_agents, register_algorithms
+from sb3_saeir.zoo.launcher import prepare_enjoy_args, prepare_train_args
 
 REPO = Path(__file__).parent.parent
 TASK = "cn-sparse-n3"

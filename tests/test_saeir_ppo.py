@@ -9,7 +9,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from sb3_saeir import SAEIR_PPO, MSHGPolicy, make_multiagent_vec_env
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from sb3_saeir.intrinsic import SAEIRCallback, saeir_bonus
-from sb3_saeir.saeir_ppo.saeir_ppo import scale_advantage_weights
+from sb3_saeir.mappo.losses import scale_advantage_weights
 
 TINY_KWARGS = dict(n_steps=10, n_epochs=1, policy_kwargs=dict(hidden_size=8))
 

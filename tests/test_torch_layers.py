@@ -5,7 +5,7 @@ import torch as th
 from torch import nn
 
 from sb3_saeir.common.hypergraph import build_incidence, edge_to_node, gumbel_softmax, node_to_edge
-from sb3_saeir.common.torch_layers import ActorNetwork, FCBlock, GRULayer, MLPEncoder, ScaleCritic, ValueNorm
+from sb3_saeir.common.torch_layers import ActorNetwork, FCBlock, GRULayer, HypergraphScaleCritic, MLPEncoder, ValueNorm
 
 GRF_OBS_DIM = 115
 
@@ -32,7 +32,7 @@ def test_actor_parameter_count():
     ],
 )
 def test_critic_parameter_count(scale, n_agents, expected):
-    critic = ScaleCritic(GRF_OBS_DIM, n_agents, scale, activation_fn=nn.ReLU)
+    critic = HypergraphScaleCritic(GRF_OBS_DIM, n_agents, scale, activation_fn=nn.ReLU)
     assert _n_params(critic) == expected
     assert {"team": 58_736, "group": 67_446, "individual": 67_446 if n_agents == 3 else 71_801}[scale] == expected
 
@@ -116,12 +116,12 @@ def _critic_inputs(n_steps: int, n_games: int, n_agents: int, obs_dim: int = 9, 
     return obs, hidden, starts
 
 
-def _small_critic(scale: str, n_agents: int = 3, **kwargs) -> ScaleCritic:
-    return ScaleCritic(9, n_agents, scale, hidden_size=16, **kwargs)
+def _small_critic(scale: str, n_agents: int = 3, **kwargs) -> HypergraphScaleCritic:
+    return HypergraphScaleCritic(9, n_agents, scale, hidden_size=16, **kwargs)
 
 
 @pytest.mark.parametrize("scale", ["team", "group", "individual"])
-def test_scale_critic_deterministic_without_gumbel_noise(scale):
+def test_hypergraph_scale_critic_deterministic_without_gumbel_noise(scale):
     critic = _small_critic(scale)
     obs, hidden, starts = _critic_inputs(4, 2, 3)
     values, new_hidden = critic(obs, hidden, starts, gumbel_noise=False)
@@ -137,7 +137,7 @@ def test_scale_critic_deterministic_without_gumbel_noise(scale):
 
 
 @pytest.mark.parametrize("scale", ["team", "group", "individual"])
-def test_scale_critic_permutation_equivariant(scale):
+def test_hypergraph_scale_critic_permutation_equivariant(scale):
     critic = _small_critic(scale, n_agents=4)
     obs, hidden, starts = _critic_inputs(3, 2, 4, seed=1)
     perm = th.tensor([2, 0, 3, 1])
@@ -148,7 +148,7 @@ def test_scale_critic_permutation_equivariant(scale):
 
 
 @pytest.mark.parametrize("scale", ["team", "group", "individual"])
-def test_scale_critic_sequence_equals_step_by_step(scale):
+def test_hypergraph_scale_critic_sequence_equals_step_by_step(scale):
     critic = _small_critic(scale)
     obs, hidden, starts = _critic_inputs(10, 2, 3, seed=2)
     starts[4, 1] = 1.0  # at least one reset inside the sequence
@@ -162,7 +162,7 @@ def test_scale_critic_sequence_equals_step_by_step(scale):
     th.testing.assert_close(last_hidden, h, atol=1e-5, rtol=1e-5)
 
 
-def test_scale_critic_group_size_at_least_n_agents():
+def test_hypergraph_scale_critic_group_size_at_least_n_agents():
     critic = _small_critic("group", n_agents=3, group_size=3, n_edge_types=3)
     assert critic.n_types == 3
     obs, hidden, starts = _critic_inputs(2, 2, 3)
@@ -226,7 +226,7 @@ def test_value_norm_fresh_and_state_dict():
     assert set(norm.state_dict()) == {"running_mean", "running_mean_sq", "debiasing_term"}
 
 
-def _reference_critic_values(critic: ScaleCritic, h: th.Tensor) -> th.Tensor:
+def _reference_critic_values(critic: HypergraphScaleCritic, h: th.Tensor) -> th.Tensor:
     """Spec §1.3-§1.7 written with explicit loops over one hypergraph: h (N, H) GRU features -> values (N,)."""
     n_agents = h.shape[0]
     if critic.scale == "team" or (critic.scale == "group" and critic.group_size >= n_agents):
@@ -262,7 +262,7 @@ def _reference_critic_values(critic: ScaleCritic, h: th.Tensor) -> th.Tensor:
 @pytest.mark.parametrize(
     "scale, n_agents, group_size", [("team", 3, 2), ("group", 4, 2), ("group", 4, 3), ("group", 3, 3), ("individual", 3, 2)]
 )
-def test_scale_critic_matches_hand_written_reference(scale, n_agents, group_size):
+def test_hypergraph_scale_critic_matches_hand_written_reference(scale, n_agents, group_size):
     critic = _small_critic(scale, n_agents=n_agents, group_size=group_size).double()
     with th.no_grad():  # random LayerNorm affine parameters make every path visible
         for module in critic.modules():
@@ -281,7 +281,7 @@ def test_scale_critic_matches_hand_written_reference(scale, n_agents, group_size
             th.testing.assert_close(values[0, game], _reference_critic_values(critic, gru_features[game]), atol=1e-10, rtol=0)
 
 
-def _generic_message_passing(critic: ScaleCritic, nodes: th.Tensor, gumbel_noise: bool) -> th.Tensor:
+def _generic_message_passing(critic: HypergraphScaleCritic, nodes: th.Tensor, gumbel_noise: bool) -> th.Tensor:
     """The critic's message passing as first written, every module run on every hypergraph (no shortcut):
     node-to-edge attention for every scale, the incidence products for H = I, the edge types as a list of modules.
 
@@ -312,7 +312,7 @@ def _generic_message_passing(critic: ScaleCritic, nodes: th.Tensor, gumbel_noise
     [("team", 3, 2, 3), ("group", 3, 2, 3), ("group", 4, 3, 3), ("group", 3, 2, 1), ("individual", 3, 2, 3)],
 )
 @pytest.mark.parametrize("gumbel_noise", [True, False])
-def test_scale_critic_shortcuts_match_generic_path(scale, n_agents, group_size, n_edge_types, gumbel_noise):
+def test_hypergraph_scale_critic_shortcuts_match_generic_path(scale, n_agents, group_size, n_edge_types, gumbel_noise):
     # the shortcuts (team: no node-to-edge path; H = I: diagonal attention and messages; no unused u_e product) give
     # the values, the gradients of every parameter and the global RNG stream of the generic computation
     critic = _small_critic(scale, n_agents=n_agents, group_size=group_size, n_edge_types=n_edge_types)

@@ -12,28 +12,14 @@ from typing import Any
 
 from sb3_saeir.benchmark.execution import run_all
 from sb3_saeir.benchmark.reports import plot_system_entropy, report
-from sb3_saeir.benchmark.runs import (
-    RunSpec,
-    ensure_spec_file,
-    move_aside,
-    parse_seeds,
-    run_folder,
-    spec_record,
-    stored_spec_differences,
-)
+from sb3_saeir.benchmark.runs import ensure_spec_file, move_aside, parse_seeds, run_folder, stored_spec_differences
+from sb3_saeir.command_line import OneLineParser, check_folder, count
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
-from sb3_saeir.config import (
-    ALGOS,
-    ConfigError,
-    OneLineParser,
-    check_folder,
-    check_hyperparams,
-    count,
-    load_hyperparams,
-    parse_params,
-)
+from sb3_saeir.config import ALGOS, DEFAULT_N_GAMES, ConfigError, check_hyperparams, load_hyperparams, parse_params
+from sb3_saeir.run_record import RunSpec, spec_record
 
 # The line Ctrl-C ends with (exit status 130).
 INTERRUPTED = "interrupted: re-run the same command to resume"
@@ -47,7 +33,7 @@ def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only:
     """The message of a command whose runs differ from those already in ``out``: one line per run, then the fix.
 
     :param out: the benchmark folder
-    :param mismatches: each mismatching run with its differences (:func:`spec_differences`)
+    :param mismatches: each mismatching run with its differences (:func:`~sb3_saeir.run_record.spec_differences`)
     :param report_only: the command only reports (``--rerun-changed`` does not apply)
     """
     lines = [f"sb3_saeir.benchmark: error: {len(mismatches)} run(s) in {out} were made with other settings:"]
@@ -149,7 +135,7 @@ def check_runs_build(specs: list[RunSpec], out: Path) -> None:
     checked: set[tuple[str, str, int | None]] = set()
     for spec in specs:
         key = (spec.algo, spec.task, spec.n_games)
-        if key in checked or (run_folder(out, spec) / "done.json").is_file():
+        if key in checked or (run_folder(out, spec) / DONE_FILE).is_file():
             continue
         checked.add(key)
         experiment = Experiment(
@@ -175,7 +161,7 @@ def plan_runs(args: argparse.Namespace, params: dict[str, Any]) -> list[RunSpec]
     for task in args.tasks:
         for algo in args.algos:
             config = {**load_hyperparams(algo, task), **params}
-            n_games = args.n_games if args.n_games is not None else int(config.get("n_envs", 8))
+            n_games = args.n_games if args.n_games is not None else int(config.get("n_envs", DEFAULT_N_GAMES))
             for seed in parse_seeds(args.seeds):
                 specs.append(
                     RunSpec(algo, task, seed, args.n_timesteps, n_games, args.eval_freq, args.eval_episodes, params, config)
@@ -228,7 +214,7 @@ def check_run_folder(option: str, run: Path) -> None:
     """
     if not run.is_dir():
         raise ConfigError(f"{option} {run} is not a folder; give a SAEIR run's folder (it holds progress.csv).")
-    if not (run / "progress.csv").is_file():
+    if not (run / PROGRESS_FILE).is_file():
         raise ConfigError(f"{option} {run} has no progress.csv; give the folder of a SAEIR training run.")
 
 

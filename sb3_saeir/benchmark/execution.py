@@ -1,10 +1,9 @@
-"""Running the benchmark's runs: one run in its folder (a :class:`~sb3_saeir.run.Run`: train, evaluate on the grid,
-checkpoint, resume), and many runs in local worker processes or on a Ray cluster, with Ctrl-C stopping them all.
+"""Running the benchmark's runs: one run in its folder (a :class:`~sb3_saeir.run.Run`, :meth:`~sb3_saeir.run.Run.execute`),
+and many runs in local worker processes or on a Ray cluster, with Ctrl-C stopping them all.
 """
 
 from __future__ import annotations
 
-import json
 import signal
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -12,20 +11,29 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.benchmark.runs import RunSpec, ensure_spec_file, read_rows, run_folder, spec_record, write_rows
-from sb3_saeir.common.atomic import atomic_write_text
+from sb3_saeir.benchmark.runs import ensure_spec_file, run_folder
+from sb3_saeir.common.run_files import DONE_FILE, EVALUATIONS_FILE
 from sb3_saeir.common.run_lock import RunFolderLock
-from sb3_saeir.run import DONE_FILE, EVALUATIONS_FILE, Run, RunEvalCallback, RunLog, extended_budget, read_spec_file
+from sb3_saeir.run import Run
+from sb3_saeir.run_record import (
+    RunLog,
+    RunSpec,
+    extended_budget,
+    read_rows,
+    read_spec_file,
+    spec_record,
+    write_done_file,
+    write_rows,
+)
 
 # The benchmark checkpoints at every rollout start and keeps the newest two (one to fall back to).
 KEEP_CHECKPOINTS = 2
-# The benchmark's evaluations (a run's RunEvalCallback), under the name this module gave them before sb3_saeir.run.
-BenchmarkEvalCallback = RunEvalCallback
 
 
 def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, Any]:
-    """Train and evaluate one run in ``folder`` (resuming from its newest checkpoint that loads); returns its
-    evaluation rows.
+    """Train and evaluate one run in ``folder`` (resuming from its newest checkpoint that loads; a finished run is
+    skipped unless ``spec`` raises its budget); returns its evaluation rows and, when it finished, its ``done.json``
+    record (``"done"``: a driver on another machine writes it).
 
     Runs in this process or a worker process (local or Ray).
 
@@ -41,11 +49,11 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
 
     th.set_num_threads(num_threads)
     path = Path(folder)
-    with RunFolderLock(path):
+    with RunFolderLock(path) as lock:
         ensure_spec_file(path, spec_record(spec))
         stored = read_spec_file(path)
         assert stored is not None
-        if (path / DONE_FILE).is_file() and extended_budget(stored, spec.n_timesteps) is None:
+        if is_finished(path, stored, spec):
             return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(path / EVALUATIONS_FILE)}
         run = Run(
             path,
@@ -56,17 +64,16 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
             log=RunLog(path, spec.name),
         )
         run.check_budget(stored)
-        run.open()
         experiment = Experiment(spec.algo, spec.task, spec.resolved_config(), seed=spec.seed, n_games=spec.n_games)
-        try:
-            experiment.build(env=run.make_env(experiment))
-            run.write_spec()
-            run.start(experiment)
-            run.train()
-        finally:
-            experiment.close()
+        run.execute(experiment, lock=lock)
     assert run.evaluator is not None and run.clock is not None
-    return {"spec": asdict(spec), "status": "done", "rows": run.evaluator.rows, "wall_s": run.clock.total_s}
+    return {"spec": asdict(spec), "status": "done", "rows": run.evaluator.rows, "wall_s": run.clock.total_s, "done": run.done}
+
+
+def is_finished(folder: Path, stored: dict[str, Any] | None, spec: RunSpec) -> bool:
+    """Whether the run in ``folder`` is finished for ``spec``: it has its ``done.json`` and ``spec`` does not raise the
+    budget of its settings record ``stored`` (a larger budget trains it longer)."""
+    return (folder / DONE_FILE).is_file() and (stored is None or extended_budget(stored, spec.n_timesteps) is None)
 
 
 def benchmark_command(spec: RunSpec) -> dict[str, Any]:
@@ -143,8 +150,8 @@ def _run_on_ray(specs: list[RunSpec], out: Path, ray_address: str, num_threads: 
     pending = {}
     for spec in specs:
         local = run_folder(out, spec)
-        if (local / "done.json").is_file():
-            results.append({"spec": asdict(spec), "status": "skipped", "rows": read_rows(local / "evaluations.csv")})
+        if is_finished(local, read_spec_file(local), spec):
+            results.append({"spec": asdict(spec), "status": "skipped", "rows": read_rows(local / EVALUATIONS_FILE)})
         else:
             pending[remote.remote(spec, str(local), num_threads)] = spec
     try:
@@ -158,14 +165,14 @@ def _run_on_ray(specs: list[RunSpec], out: Path, ray_address: str, num_threads: 
 
 
 def _store(result: dict[str, Any], out: Path) -> dict[str, Any]:
-    """Write a run's rows into its folder on the driver (they may come from another machine)."""
+    """Write a run's rows and ``done.json`` (the record the run returned) into its folder on the driver: they may
+    come from another machine."""
     spec = RunSpec(**result["spec"])
     folder = run_folder(out, spec)
     if result["rows"]:
         write_rows(folder / EVALUATIONS_FILE, result["rows"])
-    if result["status"] == "done" and not (folder / DONE_FILE).is_file():
-        folder.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(folder / "done.json", json.dumps({"wall_s": round(result.get("wall_s", 0.0), 1)}))
+    if result.get("done") is not None and not (folder / DONE_FILE).is_file():
+        write_done_file(folder, result["done"])
     status = result["status"] + (f" in {result['wall_s']:.0f} s" if "wall_s" in result else "")
     print(f"{spec.name}: {status}", flush=True)
     return result

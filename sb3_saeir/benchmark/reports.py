@@ -11,17 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from sb3_saeir.benchmark.runs import (
-    SPEC_FILE,
-    RunSpec,
-    read_rows,
-    run_folder,
-    spec_record,
-    stored_spec_differences,
-    write_rows,
-)
+from sb3_saeir.benchmark.runs import run_folder, stored_spec_differences
 from sb3_saeir.benchmark.statistics import final_rows, main_metric, pairwise_markdown, rliable_markdown, table_columns
 from sb3_saeir.common.atomic import atomic_write_text
+from sb3_saeir.common.run_files import DONE_FILE, EVALUATIONS_FILE, PROGRESS_FILE, SPEC_FILE
+from sb3_saeir.run_record import RunSpec, read_rows, spec_record, write_rows
 
 
 def collect(out: Path, specs: list[RunSpec]) -> list[dict[str, Any]]:
@@ -35,7 +29,7 @@ def collect(out: Path, specs: list[RunSpec]) -> list[dict[str, Any]]:
     for spec in specs:
         folder = run_folder(out, spec)
         if (folder / SPEC_FILE).is_file() and not stored_spec_differences(folder, spec_record(spec)):
-            rows.extend(read_rows(folder / "evaluations.csv"))
+            rows.extend(read_rows(folder / EVALUATIONS_FILE))
     if rows:
         write_rows(out / "runs.csv", rows)
     else:
@@ -184,7 +178,7 @@ def plot_system_entropy(run: Path, path: Path) -> dict[str, dict[str, float]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = read_rows(run / "progress.csv")
+    rows = read_rows(run / PROGRESS_FILE)
     try:
         summary = system_entropy_summary(rows)
     except ValueError as error:
@@ -283,5 +277,5 @@ def unfinished_runs(out: Path, specs: list[RunSpec], rows: list[dict[str, Any]])
     return {
         (spec.algo, spec.task, spec.seed): reached[(spec.algo, spec.task, spec.seed)]
         for spec in specs
-        if (spec.algo, spec.task, spec.seed) in reached and not (run_folder(out, spec) / "done.json").is_file()
+        if (spec.algo, spec.task, spec.seed) in reached and not (run_folder(out, spec) / DONE_FILE).is_file()
     }

@@ -1,51 +1,19 @@
-"""The benchmark's runs and their folders: the run folder of a spec, the comparison of a folder's ``spec.json`` with
-a planned run, and moving a changed run aside. The run itself, its settings record and its files are
-:mod:`sb3_saeir.run`'s (re-exported here under the names the benchmark has always used).
-
-A run's folder is ``<out>/runs/<algo>/<task>_s<seed>/`` (see :mod:`sb3_saeir.benchmark`).
+"""The benchmark's run folders, ``<out>/runs/<algo>/<task>_s<seed>/``: the folder of a planned run, the comparison
+of a folder's ``spec.json`` with it, and moving a changed run aside. What a run folder holds and how it is read:
+:mod:`sb3_saeir.run_record`.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.common.atomic import atomic_write_text, unused_name
+from sb3_saeir.common.atomic import unused_name
+from sb3_saeir.common.run_files import SPEC_FILE
 from sb3_saeir.config import ConfigError
-from sb3_saeir.run import (
-    CHECKPOINT_NAME,
-    SPEC_FILE,
-    SPEC_SETTINGS,
-    RunLog,
-    RunSpec,
-    read_rows,
-    read_spec_file,
-    same_row,
-    spec_differences,
-    spec_record,
-    write_rows,
-)
-
-__all__ = [
-    "CHECKPOINT_NAME",
-    "SPEC_FILE",
-    "SPEC_SETTINGS",
-    "RunLog",
-    "RunSpec",
-    "ensure_spec_file",
-    "move_aside",
-    "parse_seeds",
-    "read_rows",
-    "run_folder",
-    "same_row",
-    "spec_differences",
-    "spec_record",
-    "stored_spec_differences",
-    "write_rows",
-]
+from sb3_saeir.run_record import RunSpec, read_spec_file, spec_differences, write_spec_file
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -73,6 +41,7 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def run_folder(out: Path, spec: RunSpec) -> Path:
+    """The folder of a run of the benchmark in ``out``: ``<out>/runs/<algo>/<task>_s<seed>/``."""
     return out / "runs" / spec.algo / f"{spec.task}_s{spec.seed}"
 
 
@@ -81,7 +50,7 @@ def stored_spec_differences(folder: Path, record: dict[str, Any]) -> list[str]:
     folder holds nothing yet).
 
     :param folder: the run's folder
-    :param record: :func:`spec_record` of the planned run
+    :param record: :func:`~sb3_saeir.run_record.spec_record` of the planned run
     """
     try:
         stored = read_spec_file(folder)
@@ -98,15 +67,14 @@ def ensure_spec_file(folder: Path, record: dict[str, Any]) -> None:
     """Write the run's ``spec.json`` unless it is there; refuse a folder made with other settings.
 
     :param folder: the run's folder
-    :param record: :func:`spec_record` of the run
+    :param record: :func:`~sb3_saeir.run_record.spec_record` of the run
     :raises ValueError: naming what differs
     """
     differences = stored_spec_differences(folder, record)
     if differences:
         raise ValueError(f"{folder} holds a run made with other settings: {'; '.join(differences)}.")
     if not (folder / SPEC_FILE).is_file():
-        folder.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(folder / SPEC_FILE, json.dumps(record, indent=2, sort_keys=True) + "\n")
+        write_spec_file(folder, record)
 
 
 def move_aside(folder: Path) -> Path:

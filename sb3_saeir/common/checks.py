@@ -1,9 +1,9 @@
-"""Argument checks of the algorithms, the vec env and the command line: each one refuses a bad value in one line that
-names the argument, the value and the fix, before anything is built or written (``docs/guide/algorithms.md``).
+"""Argument checks of the algorithms and the command line: each one refuses a bad value in one line that names the
+argument, the value and the fix, before anything is built or written (``docs/guide/algorithms.md``).
 
 One implementation per check, used by every caller: :class:`~sb3_saeir.MAPPO` / :class:`~sb3_saeir.SAEIR_PPO`
-(constructor, ``load``, ``save``), :func:`~sb3_saeir.make_multiagent_vec_env` (the action space) and
-``python -m sb3_saeir.train`` (the device, through :func:`sb3_saeir.config.check_device`).
+(constructor, ``load``, ``save``) and ``python -m sb3_saeir.train`` (the device, through
+:func:`sb3_saeir.command_line.check_arguments`).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
 from sb3_saeir.common.utils import check_bool, unwritable_folder
+from sb3_saeir.common.vec_env.game_checks import check_action_space
 
 # Valid range of each numeric argument: (test, description). Schedules (callables) are not checked.
 _RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
@@ -265,28 +266,6 @@ def check_observation_space(algo_name: str, observation_space: spaces.Space) -> 
         f"{algo_name} needs flat Box observations per agent (a vector), got {described}. Flatten them in the env: "
         "supersuit.flatten_v0(parallel_env) before make_multiagent_vec_env (images: supersuit.resize_v1 first to keep "
         "them small)."
-    )
-
-
-def check_action_space(owner: str, action_space: spaces.Space) -> None:
-    """Reject ``Discrete`` / ``MultiDiscrete`` action spaces whose ``start`` is not 0: the policies sample actions
-    ``0 .. n - 1`` (as SB3 does), so every action the env received would be off by ``start``.
-
-    :param owner: who checks, for the message (``"MAPPO"``, ``"make_multiagent_vec_env"``)
-    :param action_space: one agent's action space, as the env declares it
-    """
-    if not isinstance(action_space, (spaces.Discrete, spaces.MultiDiscrete)):
-        return
-    start = np.asarray(action_space.start)
-    if not np.any(start != 0):
-        return
-    if isinstance(action_space, spaces.Discrete):
-        declared, offset = f"Discrete({int(action_space.n)})", str(int(start))
-    else:
-        declared, offset = f"MultiDiscrete({action_space.nvec.tolist()})", str(start.tolist())
-    raise ValueError(
-        f"{owner}: the action space {action_space} starts at {offset}, but the policies sample actions 0 .. n - 1, so "
-        f"the env would get every action shifted; declare {declared} and add {offset} to the action inside the env."
     )
 
 

@@ -21,7 +21,7 @@ from typing import Any
 import torch as th
 
 # torch.compile's default recompile limit (8 per code object) is shared by the critics of one class (the three
-# ScaleCritics run the same forward code): each network needs about three entries (rollout step, chunk lengths)
+# HypergraphScaleCritics run the same forward code): each network needs about three entries (rollout step, chunk lengths)
 RECOMPILE_LIMIT = 64
 
 

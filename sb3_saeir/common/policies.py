@@ -7,7 +7,6 @@ observations). Every critic scale sees the N agents of a game together: its inpu
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -27,83 +26,22 @@ from torch import nn
 
 from sb3_saeir.common.compilation import compile_network, mark_dynamic
 from sb3_saeir.common.hypergraph import SCALES
-from sb3_saeir.common.torch_layers import ActorNetwork, RecurrentValueCritic, ScaleCritic, ValueNorm, check_hidden_size
+from sb3_saeir.common.policy_arguments import (
+    DEFAULT_GROUP_SIZE,
+    check_sb3_policy_kwargs,
+    default_optimizer_kwargs,
+    default_scales,
+    warn_degenerate_group_scale,
+)
+from sb3_saeir.common.torch_layers import (
+    ActorNetwork,
+    HypergraphScaleCritic,
+    RecurrentValueCritic,
+    ValueNorm,
+    check_hidden_size,
+)
 from sb3_saeir.common.type_aliases import MultiAgentStates
 from sb3_saeir.common.utils import check_bool
-
-# SB3 ActorCriticPolicy arguments these policies cannot honour, with what to use instead.
-_UNSUPPORTED_SB3_ARGUMENTS = {
-    "net_arch": "the networks follow the paper's layout; set their width with hidden_size",
-    "features_extractor_class": "observations go to the actor and critics as flat vectors; flatten them in the env "
-    "(supersuit.flatten_v0)",
-    "features_extractor_kwargs": "features extractors are not used; flatten observations in the env",
-    "use_sde": "gSDE is not supported; continuous actions use a diagonal Gaussian (log_std_init sets its start)",
-}
-# SB3 arguments accepted when their value does nothing here (SB3 passes them when it rebuilds a saved policy).
-_SB3_NOOP_VALUES: dict[str, tuple[Any, ...]] = {
-    "net_arch": (None,),
-    "features_extractor_class": (None, "FlattenExtractor"),
-    "features_extractor_kwargs": (None,),
-    "use_sde": (False,),
-    "squash_output": (None, False),
-    "full_std": (None, True),
-    "use_expln": (None, False),
-    "normalize_images": (None, True, False),
-    "share_features_extractor": (True,),
-}
-
-
-def _is_noop(key: str, value: Any) -> bool:
-    if key in ("net_arch", "features_extractor_kwargs") and isinstance(value, (dict, list)) and not value:
-        return True
-    if key == "features_extractor_class" and isinstance(value, type):
-        value = value.__name__
-    accepted_values = _SB3_NOOP_VALUES[key]
-    return any(value is accepted or (type(value) is type(accepted) and value == accepted) for accepted in accepted_values)
-
-
-def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_init: bool) -> None:
-    """Reject SB3 policy arguments that would be silently ignored, naming the argument to use instead.
-
-    :param policy_name: class name for the message
-    :param sb3_kwargs: the extra keyword arguments the policy received
-    :param ortho_init: the ``ortho_init`` argument (only ``True`` is supported)
-    :raises ValueError: for an unknown key, ``ortho_init=False``, or an SB3 argument with a value that would do nothing
-    """
-    if not ortho_init:
-        raise ValueError(
-            f"{policy_name}: ortho_init=False is not supported (every layer uses the paper's orthogonal "
-            "initialisation); remove the argument."
-        )
-    for key, value in sb3_kwargs.items():
-        if key not in _SB3_NOOP_VALUES:
-            raise ValueError(
-                f"{policy_name}: unknown policy argument {key!r}. Valid arguments: hidden_size, activation_fn, "
-                "recurrent, recurrent_actor, normalize_values, value_norm_beta, critic_gumbel_noise, log_std_init, "
-                "optimizer_class, optimizer_kwargs, and the critic's own options (see the policy's docstring)."
-            )
-        if _is_noop(key, value):
-            continue
-        if key == "share_features_extractor":
-            raise ValueError(
-                f"{policy_name}: share_features_extractor=False is not supported (the actor and every critic have "
-                "their own networks and there is no features extractor to share); remove the argument."
-            )
-        hint = _UNSUPPORTED_SB3_ARGUMENTS.get(key, "remove the argument")
-        raise ValueError(f"{policy_name}: policy argument {key}={value!r} is not supported: {hint}.")
-
-
-def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[str, Any]:
-    """The policies' optimizer kwargs when none are given: MAPPO's ``eps=1e-5``, and PyTorch's fused kernel for Adam
-    and AdamW (one kernel over all parameter tensors instead of several multi-tensor ``_foreach_*`` ops; the same
-    update up to float rounding, ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes.
-
-    :param optimizer_class: the policy's optimizer class
-    :return: the keyword arguments the optimizer is built with
-    """
-    if optimizer_class in (th.optim.Adam, th.optim.AdamW):
-        return {"eps": 1e-5, "fused": True}
-    return {"eps": 1e-5, "foreach": True}
 
 
 class MultiAgentActorCriticPolicy(ActorCriticPolicy):
@@ -136,8 +74,9 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     :param log_std_init: initial log standard deviation of the Gaussian action head (continuous actions)
     :param ortho_init: orthogonal initialisation; only ``True`` (the paper's) is supported, ``False`` raises
     :param optimizer_class: optimizer class
-    :param optimizer_kwargs: optimizer kwargs (default: :func:`default_optimizer_kwargs`, ``eps=1e-5`` as MAPPO with
-        ``fused=True`` for Adam and AdamW)
+    :param optimizer_kwargs: optimizer kwargs (default:
+        :func:`~sb3_saeir.common.policy_arguments.default_optimizer_kwargs`, ``eps=1e-5`` as MAPPO with ``fused=True``
+        for Adam and AdamW)
     :param sb3_kwargs: SB3 ``ActorCriticPolicy`` arguments, accepted only with their default value (SB3 passes them
         when it rebuilds a saved policy); ``net_arch``, ``features_extractor_class``, ``use_sde`` or
         ``share_features_extractor=False`` raise a ``ValueError`` naming what to use instead, as does any unknown key
@@ -621,40 +560,6 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         return array.reshape(shape)
 
 
-DEFAULT_GROUP_SIZE = 2  # k of the group scale (the authors' ``num_in_group``)
-
-
-def _default_scales(n_agents: int) -> tuple[str, ...]:
-    """The default critic scales for ``n_agents`` agents: all of :data:`SCALES`, without the group scale where the
-    default group size is not smaller than the team (its hyperedges would hold the whole team), with a warning."""
-    if n_agents <= 1 or DEFAULT_GROUP_SIZE < n_agents:
-        return SCALES
-    warnings.warn(
-        f"MSHGPolicy: the group scale is left out with {n_agents} agents per game (group_size={DEFAULT_GROUP_SIZE} "
-        "groups would hold the whole team and copy the team critic); the critics are ('team', 'individual').",
-        UserWarning,
-        stacklevel=3,
-    )
-    return tuple(scale for scale in SCALES if scale != "group")
-
-
-def warn_degenerate_group_scale(group_size: int) -> None:
-    """Warn (one line) that the group scale is degenerate on one-agent games: with ``group_size >= N`` its hyperedges
-    are the team's one all-ones edge, which with a single agent is also the individual scale's edge
-    (``docs/method.md``, "The critic"), so every critic sees the same one-node hypergraph.
-
-    :param group_size: k of the group scale
-    """
-    warnings.warn(
-        f"MSHGPolicy: the group scale is degenerate with 1 agent per game (group_size={group_size} >= N = 1 makes its "
-        "hyperedge the team's, and with one agent the team and individual hyperedges are the same one-agent edge): "
-        "every critic sees the same hypergraph; train on games of 2 or more agents, or pass "
-        "policy_kwargs=dict(scales=('team',)) for one critic.",
-        UserWarning,
-        stacklevel=4,
-    )
-
-
 class MSHGPolicy(MultiAgentActorCriticPolicy):
     """SAEIR's multi-scale hypergraph (MSHG) critic with the parameter-shared recurrent actor.
 
@@ -686,7 +591,7 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
         **kwargs: Any,
     ) -> None:
         n_agents = int(kwargs.get("n_agents", 1))
-        scales = _default_scales(n_agents) if scales is None and group_size is None else scales
+        scales = default_scales(n_agents) if scales is None and group_size is None else scales
         scales = SCALES if scales is None else scales
         group_size = DEFAULT_GROUP_SIZE if group_size is None else group_size
         unknown = [scale for scale in scales if scale not in SCALES]
@@ -711,7 +616,7 @@ class MSHGPolicy(MultiAgentActorCriticPolicy):
     def _build_critics(self) -> nn.ModuleDict:
         return nn.ModuleDict(
             {
-                scale: ScaleCritic(
+                scale: HypergraphScaleCritic(
                     self.obs_dim,
                     self.n_agents,
                     scale,

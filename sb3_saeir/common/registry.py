@@ -1,15 +1,8 @@
-"""The package's registries: task ids (a name -> a factory returning one PettingZoo ``ParallelEnv``, one game) and
-intrinsic-reward names (``intrinsic_reward="saeir"`` -> the callback class the algorithm adds).
-
-This module holds the registries' storage and lookups; the package's own tasks are registered into it by
-:mod:`sb3_saeir.envs.registry` and its bonuses by their modules in ``sb3_saeir.intrinsic`` (both run by
-``import sb3_saeir``, hence by importing any ``sb3_saeir`` module). The task functions are importable from
-``sb3_saeir.envs`` and ``sb3_saeir.envs.registry``, :func:`register_intrinsic_reward` from ``sb3_saeir.intrinsic``.
-
-A task may also offer a native multi-agent vec env of many games, which ``make_multiagent_vec_env`` uses instead of
-SuperSuit (see ``docs/tasks.md``): registered with the task (``vec_env_entry_point``, as the navigation tasks are), or
-as a classmethod ``native_vec_env(n_games, mark_truncation=False, **kwargs)`` of the task's constructor;
-:func:`get_native_vec_env_factory` finds it.
+"""The package's registries: task ids (a name -> a factory of one PettingZoo ``ParallelEnv``, one game, and optionally a
+native vec env of many games: ``vec_env_entry_point`` or a ``native_vec_env`` classmethod,
+:func:`get_native_vec_env_factory`) and intrinsic-reward names (``intrinsic_reward="saeir"`` -> the callback class).
+The storage and lookups live here; :mod:`sb3_saeir.envs.registry` and ``sb3_saeir.intrinsic`` register the package's
+tasks and bonuses on ``import sb3_saeir`` (``docs/tasks.md``, ``docs/guide/custom_env.md``).
 """
 
 from __future__ import annotations

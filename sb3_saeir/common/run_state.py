@@ -1,24 +1,12 @@
-"""Run state: what a training run needs to continue bit for bit after it stopped, and where it is written.
+"""Run state: what a training run needs to continue bit for bit after it stopped (``docs/guide/training.md``,
+"Stopping and resuming a run"), for envs that can save their state (``get_resume_state``).
 
-A run resumed from one of these checkpoints ends as the same run uninterrupted would have (same parameters, same
-``progress.csv`` rows but the ``time/`` columns), for envs that can save their state (``get_resume_state``: the
-native navigation env, and :class:`~sb3_saeir.common.vec_env.MultiAgentVecMonitor` around it). The pieces:
-
-- :func:`save_checkpoint` / :func:`load_resume_state`: the SB3 model zip with one more entry, ``resume_state.pkl``
-  (:func:`capture_resume_state`: the torch, NumPy and ``random`` generator states, the model's last observations,
-  episode starts and GRU states, its episode-info buffers, the training env's state, the intrinsic-reward callbacks,
-  the logger's values not yet written, and the state of any other object given as ``extras``, such as an evaluation
-  callback), written to a temporary file and moved into place, so that a kill during a save leaves the previous
-  checkpoint whole;
-- :class:`RunCheckpointCallback`: writes these checkpoints at rollout starts (the one point where nothing is half
-  done: the update is over and the next rollout has not begun) and restores one at the first rollout after resuming;
-  it also turns a stop request (Ctrl-C in ``python -m sb3_saeir.train``) into a checkpoint and a clean stop;
-- :func:`progress_logger`: SB3's logger going on with a run's ``progress.csv`` (rows after the checkpoint dropped,
-  ``time/iterations`` counting on);
-- :class:`SegmentClock`: the run's wall time over the processes that worked on it.
-
-``python -m sb3_saeir.train --resume`` and ``python -m sb3_saeir.benchmark`` both resume through this module (see
-``docs/guide/training.md`` and ``docs/guide/benchmark.md``).
+:func:`save_checkpoint` / :func:`load_resume_state`: the SB3 model zip with one more entry, ``resume_state.pkl``
+(:func:`capture_resume_state`: generators, the model's last observations and GRU states, episode buffers, the training
+env, intrinsic-reward callbacks, unwritten logger values, ``extras`` such as an evaluation callback), written
+atomically. :class:`RunCheckpointCallback` writes them at rollout starts, restores one after resuming and turns a stop
+request (Ctrl-C) into a checkpoint and a clean stop; :func:`progress_logger` continues a run's ``progress.csv``;
+:class:`SegmentClock` keeps the run's wall time over the processes that worked on it.
 """
 
 from __future__ import annotations
@@ -40,6 +28,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger, filter_excluded_keys
 
 from sb3_saeir.common.atomic import atomic_file, atomic_write_text, keep_damaged
+from sb3_saeir.common.run_files import PROGRESS_FILE
 
 # The entry of a checkpoint zip that holds the resume state (SB3's load ignores it).
 RESUME_ENTRY = "resume_state.pkl"
@@ -518,7 +507,7 @@ def progress_logger(
     :param expected_rows: rows ``progress.csv`` held at the checkpoint (its resume state's ``progress_rows``)
     :param log: where to say which rows cannot be restored
     """
-    path = folder / "progress.csv"
+    path = folder / PROGRESS_FILE
     keys, rows = truncate_progress(path, done_steps, expected_rows, log) if done_steps is not None else ([], 0)
     formats: list[KVWriter] = [*(output_formats or []), ContinuedCSVOutputFormat(str(path), keys, rows)]
     return ContinuedLogger(str(folder), formats, iteration_offset)

@@ -1,26 +1,10 @@
-"""Double-buffered sampling: the policy acts for one group of games while the other groups step.
-
-With the games in worker processes (``make_multiagent_vec_env(..., num_cpus=k)``), each worker's games form a group
-(:attr:`~sb3_saeir.common.vec_env.GroupedVecEnv.sampling_groups`). ``MAPPO(..., double_buffered=...)`` (and
-``SAEIR_PPO``) keeps every group stepping: as soon as one group's step comes back, the policy computes that group's
-next actions and sends them, while the other groups' engines run (Sample Factory's double-buffered sampling). The
-policy is fixed during a rollout and every network computes per slot or per game, so the maths is that of the
-synchronous loop: the buffer gets the same observations, actions, rewards, values, log-probs and states in the same
-layout, up to the last bits of float sums over a group's smaller batch (tested with a policy whose actions do not
-depend on random draws; ``docs/guide/performance.md``, "Football across cores").
-
-**Random draws.** The actions (and the hypergraph critics' Gumbel noise) are drawn group by group, so the random
-stream differs from the synchronous loop's. Each group draws from its own torch generator state, seeded from the global
-generator at the start of the rollout, so the order in which the groups come back does not matter: the same seed gives
-the same run twice (tested with workers whose steps take random wall time). After the rollout the global generator
-continues from where the group seeds were drawn.
-
-**The collector.** :class:`RolloutCollector` holds both loops that fill a rollout buffer: the synchronous one (the
-policy acts for every slot, every game steps) and the double-buffered one; ``MAPPO.collect_rollouts`` (and
-``SAEIR_PPO``'s) calls it for the steps, then computes the bootstrap values, the intrinsic rewards and GAE. The loops
-live here, beside :func:`double_buffering_obstacle` and the per-group random streams, and step the env only through
-the grouped stepping of :class:`~sb3_saeir.common.vec_env.GroupedVecEnv` (which the worker pool,
-:mod:`sb3_saeir.common.game_workers`, serves): the algorithm keeps only its maths.
+"""Filling a rollout buffer: :class:`RolloutCollector` holds the synchronous loop (the policy acts for every slot,
+every game steps) and the double-buffered one (with the games in worker processes, the policy acts for one group of
+games while the other groups step, Sample Factory's double-buffered sampling), beside :func:`double_buffering_obstacle`
+and the per-group random streams. The maths is the synchronous loop's; the random draws come group by group from
+per-group generators, so a seed gives the same run whatever order the groups come back in
+(``docs/guide/performance.md``, "Football across cores"). ``MAPPO.collect_rollouts`` makes one collector per rollout;
+the env is stepped only through :class:`~sb3_saeir.common.vec_env.GroupedVecEnv`'s grouped stepping.
 """
 
 from __future__ import annotations
@@ -129,8 +113,9 @@ class GroupRandomStreams:
 
 
 @dataclass
-class GroupStep:
-    """What the policy computed for one group at one step (inputs and outputs), kept until the whole step is in."""
+class PolicyStep:
+    """The policy's step for some slots (one group of games, or all of them): its inputs and outputs, kept until the
+    step of all slots is stored."""
 
     obs: np.ndarray  # (rows, ...) the observations the policy acted on
     episode_starts: np.ndarray  # (rows,)
@@ -155,9 +140,9 @@ def join_states(parts: list[MultiAgentStates]) -> MultiAgentStates:
     )
 
 
-def join_steps(parts: list[GroupStep]) -> GroupStep:
+def join_steps(parts: list[PolicyStep]) -> PolicyStep:
     """One step of all slots from the groups' steps (groups in slot order)."""
-    return GroupStep(
+    return PolicyStep(
         obs=np.concatenate([part.obs for part in parts]),
         episode_starts=np.concatenate([part.episode_starts for part in parts]),
         states=join_states([part.states for part in parts]),
@@ -185,10 +170,15 @@ def use_double_buffering(algo_name: str, setting: bool | str, env: VecEnv) -> bo
 
 
 class RolloutOwner(Protocol):
-    """What :class:`RolloutCollector` reads and moves on the algorithm (SB3's ``OnPolicyAlgorithm`` attributes):
-    the agent-step counter, where the env was left (observations, episode starts, recurrent states) and the episode
-    info buffer of the ``rollout/`` logs."""
+    """What :class:`RolloutCollector` reads and moves on the algorithm (SB3's ``OnPolicyAlgorithm`` attributes): the
+    policy, fixed during the rollout, one agent's action space (``Box`` actions are clipped before the env gets them),
+    the discount of the bootstrap added at time limits, the device, the agent-step counter, where the env was left
+    (observations, episode starts, recurrent states) and the episode info buffer of the ``rollout/`` logs."""
 
+    policy: MultiAgentActorCriticPolicy
+    action_space: spaces.Space
+    gamma: float
+    device: th.device
     num_timesteps: int
     _last_obs: np.ndarray | dict[str, np.ndarray] | None
     _last_episode_starts: np.ndarray | None
@@ -197,104 +187,75 @@ class RolloutOwner(Protocol):
     def _update_info_buffer(self, infos: list[dict[str, Any]], dones: np.ndarray | None = None) -> None: ...
 
 
-@dataclass
-class Collection:
-    """One rollout being collected: whose counters move, which env steps, who is called back, which buffer fills and
-    for how many steps of every game.
-
-    :param owner: the algorithm (:class:`RolloutOwner`)
-    :param env: the training env
-    :param callback: the callbacks
-    :param rollout_buffer: the buffer, reset
-    :param n_rollout_steps: steps per game
-    """
-
-    owner: RolloutOwner
-    env: VecEnv
-    callback: BaseCallback
-    rollout_buffer: GroupedRecurrentRolloutBuffer
-    n_rollout_steps: int
-
-
 class RolloutCollector:
-    """The steps of one rollout, synchronous or double-buffered (module docstring), stored in the rollout buffer.
+    """The steps of one rollout, synchronous or double-buffered (module docstring), stored in the rollout buffer: the
+    body of SB3's ``collect_rollouts(env, callback, rollout_buffer, n_rollout_steps)`` with the algorithm as ``owner``.
 
     Each step of all slots is stored, and the callbacks' ``on_step`` called, as SB3's ``collect_rollouts`` does: the
     callbacks' ``locals`` hold ``self`` (the algorithm), ``env``, ``callback``, ``rollout_buffer``,
-    ``n_rollout_steps``, ``n_steps``, ``step`` (the policy's :class:`GroupStep`), ``new_obs``, ``rewards``, ``dones``
+    ``n_rollout_steps``, ``n_steps``, ``step`` (the policy's :class:`PolicyStep`), ``new_obs``, ``rewards``, ``dones``
     and ``infos``. The algorithm's ``num_timesteps`` counts agent-steps before each ``on_step``; its ``_last_obs``,
     ``_last_episode_starts`` and ``_last_states`` follow the stored steps (``_last_obs`` is ``None`` after a
     double-buffered rollout that was stopped or failed: the next ``learn`` resets the env).
 
-    :param policy: the policy, fixed during the rollout
-    :param action_space: one agent's action space (``Box`` actions are clipped before the env gets them)
-    :param gamma: the discount of the bootstrap added at time limits
-    :param device: the policy's device
+    :param owner: the algorithm (its policy, fixed during the rollout, and its counters: :class:`RolloutOwner`)
+    :param env: the training env
+    :param callback: the callbacks (``on_step`` after each step of all slots)
+    :param rollout_buffer: the buffer, reset
+    :param n_rollout_steps: steps per game
     """
 
     def __init__(
-        self, policy: MultiAgentActorCriticPolicy, action_space: spaces.Space, gamma: float, device: th.device
-    ) -> None:
-        self.policy = policy
-        self.action_space = action_space
-        self.gamma = gamma
-        self.device = device
-
-    def collect(
         self,
         owner: RolloutOwner,
         env: VecEnv,
         callback: BaseCallback,
         rollout_buffer: GroupedRecurrentRolloutBuffer,
         n_rollout_steps: int,
-        double_buffered: bool,
-    ) -> bool:
-        """Store ``n_rollout_steps`` steps of every game in ``rollout_buffer``, from where ``owner`` left the env.
+    ) -> None:
+        self.owner = owner
+        self.env = env
+        self.callback = callback
+        self.rollout_buffer = rollout_buffer
+        self.n_rollout_steps = n_rollout_steps
+        self.policy = owner.policy
+        self.action_space = owner.action_space
+        self.gamma = owner.gamma
+        self.device = owner.device
+
+    def collect(self, double_buffered: bool) -> bool:
+        """Store ``n_rollout_steps`` steps of every game in the buffer, from where the owner left the env.
 
         With the games in worker processes, the policy's small forward passes run on one torch thread: more threads
         would spin on the cores the engines need (the update, with the workers idle, keeps the process's threads).
 
-        :param owner: the algorithm (its counters, :class:`RolloutOwner`)
-        :param env: the training env
-        :param callback: the callbacks (``on_step`` after each step of all slots)
-        :param rollout_buffer: the buffer, reset
-        :param n_rollout_steps: steps per game
         :param double_buffered: the double-buffered loop (:func:`use_double_buffering`), else the synchronous one
         :return: ``False`` when a callback stopped training
         """
         threads = th.get_num_threads()
-        if games_in_workers(env):
+        if games_in_workers(self.env):
             th.set_num_threads(1)
-        collection = Collection(owner, env, callback, rollout_buffer, n_rollout_steps)
         try:
             if double_buffered:
-                return self._collect_double_buffered(collection)
-            return self._collect_synchronous(collection)
+                return self._collect_double_buffered()
+            return self._collect_synchronous()
         finally:
             th.set_num_threads(threads)
 
-    def _collect_synchronous(self, collection: Collection) -> bool:
+    def _collect_synchronous(self) -> bool:
         """The synchronous loop: the policy acts for every slot, then every game steps."""
-        owner, env = collection.owner, collection.env
-        for n_steps in range(collection.n_rollout_steps):
+        owner = self.owner
+        for n_steps in range(self.n_rollout_steps):
             step = self._act(owner._last_obs, owner._last_states, owner._last_episode_starts)  # type: ignore[arg-type]
-            if not self._take_step(collection, n_steps, step, *env.step(self._env_actions(step.actions))):
+            if not self._take_step(n_steps, step, *self.env.step(self._env_actions(step.actions))):
                 return False
         return True
 
     def _take_step(
-        self,
-        collection: Collection,
-        n_steps: int,
-        step: GroupStep,
-        new_obs: Any,
-        rewards: np.ndarray,
-        dones: np.ndarray,
-        infos: list[dict],
+        self, n_steps: int, step: PolicyStep, new_obs: Any, rewards: np.ndarray, dones: np.ndarray, infos: list[dict]
     ) -> bool:
         """A step of all slots made: count it, call the callbacks (``False``: one stopped training), then store it.
 
-        :param collection: the rollout being collected
         :param n_steps: steps of every game stored before this one
         :param step: the policy's step for all slots
         :param new_obs: the env's observations after it
@@ -302,27 +263,27 @@ class RolloutCollector:
         :param dones: its dones
         :param infos: its infos
         """
-        owner, callback = collection.owner, collection.callback
-        owner.num_timesteps += collection.env.num_envs
+        owner, callback = self.owner, self.callback
+        owner.num_timesteps += self.env.num_envs
         # the callbacks' locals, with the names SB3's collect_rollouts gives them (self: the algorithm)
-        step_locals = {"self": owner, "env": collection.env, "callback": callback, "n_steps": n_steps, "step": step}
-        step_locals.update(rollout_buffer=collection.rollout_buffer, n_rollout_steps=collection.n_rollout_steps)
+        step_locals = {"self": owner, "env": self.env, "callback": callback, "n_steps": n_steps, "step": step}
+        step_locals.update(rollout_buffer=self.rollout_buffer, n_rollout_steps=self.n_rollout_steps)
         callback.update_locals({**step_locals, "new_obs": new_obs, "rewards": rewards, "dones": dones, "infos": infos})
         if not callback.on_step():
             return False
         owner._update_info_buffer(infos, dones)
-        self._store_step(owner, collection.rollout_buffer, step, rewards, dones, infos, new_obs)
+        self._store_step(step, rewards, dones, infos, new_obs)
         return True
 
-    def _collect_double_buffered(self, collection: Collection) -> bool:
+    def _collect_double_buffered(self) -> bool:
         """The double-buffered loop: each group of games steps on its own; a step of all slots is stored (and the
         callbacks called) once every group has made it."""
-        owner, env, n_rollout_steps = collection.owner, collection.env, collection.n_rollout_steps
+        owner, env, n_rollout_steps = self.owner, self.env, self.n_rollout_steps
         base, _ = base_multiagent_env(env)
         assert isinstance(base, GroupedVecEnv)
         groups = base.sampling_groups
         streams = GroupRandomStreams(len(groups), self.device)
-        in_buffer: list[collections.deque[GroupStep]] = [collections.deque() for _ in groups]  # sent, not yet stored
+        in_buffer: list[collections.deque[PolicyStep]] = [collections.deque() for _ in groups]  # sent, not yet stored
         sent = [0] * len(groups)
 
         def act_and_send(group: int, obs: np.ndarray, starts: np.ndarray, states: MultiAgentStates) -> None:
@@ -348,7 +309,7 @@ class RolloutCollector:
                         act_and_send(group, group_obs, group_dones, in_buffer[group][-1].new_states)
                     continue
                 step = join_steps([queue.popleft() for queue in in_buffer])
-                if not self._take_step(collection, n_steps, step, *env.step_wait()):  # the oldest step every group made
+                if not self._take_step(n_steps, step, *env.step_wait()):  # the oldest step every group made
                     base.drain_groups()
                     owner._last_obs = None  # the groups are out of step: the next learn() resets the env
                     return False
@@ -361,13 +322,13 @@ class RolloutCollector:
             streams.finish()
         return True
 
-    def _act(self, obs: np.ndarray, states: MultiAgentStates, episode_starts: np.ndarray) -> GroupStep:
+    def _act(self, obs: np.ndarray, states: MultiAgentStates, episode_starts: np.ndarray) -> PolicyStep:
         """The policy's step for the slots of ``obs`` (all slots, or one group of games)."""
         with th.no_grad():
             obs_tensor = obs_as_tensor(obs, self.device)  # type: ignore[arg-type]
             starts = th.as_tensor(episode_starts, dtype=th.float32, device=self.device)
             actions, values, log_probs, new_states = self.policy(obs_tensor, states, starts)
-        return GroupStep(obs, episode_starts, states, actions.cpu().numpy(), values, log_probs, new_states)
+        return PolicyStep(obs, episode_starts, states, actions.cpu().numpy(), values, log_probs, new_states)
 
     def _env_actions(self, actions: np.ndarray) -> np.ndarray:
         """The actions as sent to the env (clipped to a ``Box`` action space)."""
@@ -376,14 +337,7 @@ class RolloutCollector:
         return actions
 
     def _store_step(
-        self,
-        owner: RolloutOwner,
-        rollout_buffer: GroupedRecurrentRolloutBuffer,
-        step: GroupStep,
-        rewards: np.ndarray,
-        dones: np.ndarray,
-        infos: list[dict],
-        new_obs: np.ndarray,
+        self, step: PolicyStep, rewards: np.ndarray, dones: np.ndarray, infos: list[dict], new_obs: np.ndarray
     ) -> None:
         """Add one step of all slots to the buffer and move the owner's ``_last_obs``, ``_last_episode_starts`` and
         ``_last_states``."""
@@ -392,7 +346,7 @@ class RolloutCollector:
         # (E,) -> (E, K): each critic scale gets the env reward plus its own bootstrap where a game was truncated
         scale_rewards = np.repeat(np.asarray(rewards, dtype=np.float32)[:, None], self.policy.n_scales, axis=1)
         scale_rewards += self.truncation_bootstrap(infos, dones, step.new_states)
-        rollout_buffer.add(
+        self.rollout_buffer.add(
             step.obs,  # type: ignore[arg-type]
             actions,
             scale_rewards,
@@ -402,9 +356,9 @@ class RolloutCollector:
             actor_states=step.states.actor,
             critic_states=step.states.critic,
         )
-        owner._last_obs = new_obs
-        owner._last_episode_starts = dones
-        owner._last_states = step.new_states
+        self.owner._last_obs = new_obs
+        self.owner._last_episode_starts = dones
+        self.owner._last_states = step.new_states
 
     def truncation_bootstrap(self, infos: list[dict], dones: np.ndarray, states: MultiAgentStates) -> np.ndarray:
         """``gamma * V_K(final observation)`` per scale for the slots of games that hit a time limit

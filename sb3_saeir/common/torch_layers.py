@@ -237,7 +237,7 @@ class ActorNetwork(nn.Module):
         return self.gru(latent, hidden, episode_starts)
 
 
-class ScaleCritic(nn.Module):
+class HypergraphScaleCritic(nn.Module):
     r"""
     One scale of the multi-scale hypergraph (MSHG) critic, as released by the authors (spec §1.2-§1.7).
 
@@ -590,8 +590,8 @@ class RecurrentValueCritic(nn.Module):
         :param hidden: ``(G, N, H)`` GRU states (identical over agents for the joint input); ``(G, N, 0)`` without the
             GRU (returned as it is)
         :param episode_starts: ``(T, G, N)``
-        :param gumbel_noise: unused (same signature as :class:`ScaleCritic`)
-        :param gumbel_uniform: unused (same signature as :class:`ScaleCritic`)
+        :param gumbel_noise: unused (same signature as :class:`HypergraphScaleCritic`)
+        :param gumbel_uniform: unused (same signature as :class:`HypergraphScaleCritic`)
         :return: values ``(T, G, N)`` and new states ``(G, N, H)``
         """
         n_steps, n_games, n_agents, _ = obs.shape

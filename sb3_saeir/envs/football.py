@@ -1,34 +1,10 @@
-"""Google Research Football (gfootball 2.10.2) academy scenarios as a PettingZoo ``ParallelEnv``.
-
-The SAEIR authors' wrapper (``envs/football/Football_Env.py``, ``docs/method.md``, "Football wrapper"), rebuilt on PettingZoo:
-
-- ``gfootball.env.create_environment(scenario, representation="simple115v2", rewards="scoring",
-  number_of_left_players_agent_controls=N)``, the built-in AI as opponent, no rendering (no display needed).
-- Observation per agent: the 115-d ``simple115v2`` vector (float32). Action per agent: ``Discrete(19)`` (gfootball's
-  default action set).
-- Reward: gfootball's ``scoring`` reward (+1 when the left team scores, -1 when it concedes) is the same for every
-  controlled player; with ``share_reward=True`` (the authors' choice) it is **summed over the controlled players and
-  given to each**, so each agent gets +-N per goal; ``share_reward=False`` keeps gfootball's +-1.
-- Episode end as gfootball decides (academy scenarios: a goal, the ball out of play, the opponents winning the ball, or
-  ``game_duration`` = 400 steps). All agents end together; the time limit is reported as truncation, every other end
-  as termination.
-- Per-episode metrics (``infos[agent]["episode_metrics"]`` at the last step): ``success`` = 1.0 if the episode ends
-  with ``score_reward > 0`` (the left team scored; the paper's "win rate") and ``goal_diff`` = goals scored minus
-  goals conceded. Per-step infos: ``score_reward`` and ``active_player`` (see below).
-
-**Agents are slots, not players.** ``player_0`` ... ``player_{N-1}`` are the N "controlled player" slots of
-gfootball. With N smaller than the team, the engine assigns and switches the physical player of each slot during play
-(as in human multiplayer; e.g. 3 vs 1 starts with players ``[0, 2, 3]``, 0 being the goalkeeper). The index of each
-slot's current player is in ``infos[agent]["active_player"]`` and in the observation's active-player one-hot.
-
-**Seeding.** gfootball's non-deterministic scenarios (all academy ones) draw each episode's engine seed from Python's
-global ``random`` (which is all the authors' ``seed()`` seeds). Here every env has its own generator:
-``reset(seed=s)`` re-seeds it, and every reset draws the engine seed (``game_engine_random_seed``) and the team
-processing order from it. So the same seed and the same actions give the same episodes, and episodes after a seeded
-reset are a reproducible sequence, independent of ``random`` and of other envs in the process (tested, also with the
-games in worker processes). First observations are the same for every seed (academy scenarios start from fixed
-positions); the seed changes how play unfolds. Not covered: gfootball's ``real_time`` mode (off here) and results
-across machines or builds of the engine (floating point).
+"""Google Research Football (gfootball 2.10.2) academy scenarios as a PettingZoo ``ParallelEnv``: the SAEIR authors'
+wrapper (``docs/method.md``, "Football wrapper") rebuilt on PettingZoo. ``simple115v2`` observations (115 floats per
+agent), ``Discrete(19)`` actions, the ``scoring`` reward (with ``share_reward=True``, the authors' choice, summed over
+the controlled players and given to each), the built-in AI as opponent, no rendering. Agents are gfootball's
+controlled-player slots (``infos[agent]["active_player"]`` says which physical player a slot drives); every env has
+its own seeded generator for the engine seeds, so the same seed and actions give the same episodes. Per-episode
+metrics: ``success`` (the left team scored) and ``goal_diff``. The whole definition: ``docs/guide/football.md``.
 """
 
 from __future__ import annotations

@@ -1,28 +1,11 @@
-"""Sparse Cooperative Navigation: the SAEIR paper's sparse-reward variant of MPE ``simple_spread``.
-
-The supplement's words: "The agents get +l reward when l landmarks are reached and get a reward of -1 when any agents
-collide with each other. The agents are only penalized by collision once at every time step." The authors did not
-release their scenario; this package's definition, its two readings of the reward (``reward="occupancy"``, the
-literal one and the default, and ``reward="reach"``) and its two worlds (``world="mpe"``, the original MPE the paper
-used and the default, and ``world="mpe2"``) are described in ``docs/tasks.md`` and the README, "Tasks".
-
-Per step every agent of a game receives the same team reward. With ``reward="occupancy"``
-
-.. math::
-
-    r_t = \\#\\{l : \\min_a \\lVert p_a - p_l \\rVert < 0.1\\}
-          - \\mathbb{1}[\\exists a \\neq b : \\lVert p_a - p_b \\rVert < s_a + s_b]
-
-and with ``reward="reach"`` the first term counts only the landmarks that became reached at step ``t`` (not reached at
-``t - 1``). Per episode: ``coverage_rate`` = covered landmarks at the final step / N, ``coverage_over_steps`` =
-covered fraction averaged over the episode's steps, ``collision_steps`` = steps with a collision, ``success`` = every
-landmark covered at the final step, ``reach_events`` = landmarks that became reached, summed over the steps.
-
-One engine, :class:`~sb3_saeir.envs.navigation_core.NavigationCore` (batched NumPy), has two faces: the PettingZoo
-``ParallelEnv`` :class:`SparseCooperativeNavigation` (one game; it goes through SuperSuit like any user env) and the
-native multi-agent vec env :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` (G games, the fast path that
-``make_multiagent_vec_env`` builds for the navigation tasks). The two faces do not import each other: the task
-registry (:mod:`sb3_saeir.envs.registry`) names the vec env as the navigation tasks' ``vec_env_entry_point``.
+"""Sparse Cooperative Navigation: the SAEIR paper's sparse-reward variant of MPE ``simple_spread``, as the PettingZoo
+``ParallelEnv`` :class:`SparseCooperativeNavigation` (one game). Its engine,
+:class:`~sb3_saeir.envs.navigation_core.NavigationCore`, also drives the native vec env
+:class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` (G games, the fast path ``make_multiagent_vec_env``
+builds for these tasks; the two faces do not import each other). The team
+reward, its two readings (``reward="occupancy"``, the default, and ``"reach"``), the two worlds (``world="mpe"``, the
+paper's and the default, and ``"mpe2"``) and the per-episode metrics (``coverage_rate``, ``coverage_over_steps``,
+``collision_steps``, ``success``, ``reach_events``) are defined in ``docs/tasks.md``.
 """
 
 from __future__ import annotations

@@ -1,25 +1,9 @@
-"""Batched NumPy engine of sparse Cooperative Navigation: ``G`` games x ``N`` agents x ``N`` landmarks at once.
-
-The physics is MPE ``simple_spread`` written from its equations (see ``docs/tasks.md`` of this package): agents of
-size 0.15 and mass 1 pushed by an action force ``5 * direction`` and by a soft contact force between every pair of
-agents, ``100 * margin * softplus(-(|p_a - p_b| - 0.3) / margin) * (p_a - p_b) / |p_a - p_b|`` (margin 1e-3); landmarks
-(size 0.05) do not move and do not collide; ``dt = 0.1``, damping 0.25, 25 steps. Two worlds:
-
-- ``world="mpe"``: the original MPE of Lowe et al. (2017), the paper's world: ``v <- 0.75 v + F dt`` then
-  ``p <- p + v dt`` (the *new* velocity); landmarks start in ``0.8 * U(-1, 1)^2``.
-- ``world="mpe2"``: mpe2 1.1.1's order, ``p <- p + v dt`` (the *old* velocity) then ``v <- 0.75 v + F dt``;
-  landmarks start in ``U(-1, 1)^2``. Each game draws from its own generator exactly as mpe2's ``reset(seed)`` does
-  (agents first, then landmarks), so a seed gives the same episodes as mpe2's ``simple_spread_v3``.
-
-Agents start in ``U(-1, 1)^2`` with zero velocity in both worlds. Two readings of the sparse team reward (the same
-for every agent of a game, at most one collision penalty per step):
-
-- ``reward="occupancy"``: ``#{landmarks whose nearest agent is closer than cover_radius} - penalty * [collision]``.
-- ``reward="reach"``: ``#{landmarks reached now and not at the previous step} - penalty * [collision]`` (the
-  previous step of the first step is the start state; leaving and re-entering counts again).
-
-A collision is two agents closer than the sum of their sizes (0.3). The step has no Python loop over games or
-agents; only resets loop over the games being reset (one generator each).
+"""Batched NumPy engine of sparse Cooperative Navigation: ``G`` games x ``N`` agents x ``N`` landmarks at once, with
+no Python loop over games or agents in a step (resets loop over the games being reset, one generator each). The
+physics is MPE ``simple_spread`` written from its equations: the action force, the soft contact force between agents,
+damping 0.25, ``dt = 0.1``, 25 steps; ``world="mpe"`` (the paper's: the new velocity moves the agents, landmarks in
+``0.8 * U(-1, 1)^2``) or ``world="mpe2"`` (mpe2 1.1.1's order and starts, seed for seed). The rewards
+(``"occupancy"``, ``"reach"``) and the collision rule: ``docs/tasks.md``, which gives every constant.
 """
 
 from __future__ import annotations

@@ -1,6 +1,5 @@
 """The losses of MAPPO's update (``docs/method.md``, "The update") as pure functions: the critic scales' advantage
-weights, MAPPO's clipped value loss, and the order in which the update sums and lays out its terms (which keeps it bit
-for bit that of the golden runs)."""
+weights, MAPPO's clipped value loss, and the actor's and each critic's loss on a minibatch."""
 
 from __future__ import annotations
 
@@ -24,31 +23,6 @@ def scale_advantage_weights(advantages: th.Tensor) -> th.Tensor:
     :return: ``(K,)`` weights summing to 1
     """
     return th.softmax(th.logsumexp(advantages.detach(), dim=0), dim=0)
-
-
-def in_order(terms: list[th.Tensor]) -> th.Tensor:
-    """``terms[0] + terms[1] + ...``, left to right (one term: the term itself, so one group sums as the whole batch)."""
-    total = terms[0]
-    for term in terms[1:]:
-        total = total + term
-    return total
-
-
-def in_joint_layout(values: th.Tensor, k: int, n_scales: int) -> th.Tensor:
-    """Scale ``k``'s values ``(L, B, N)`` seen through the ``(L, B, N, K)`` stack of every scale's values, as the
-    update computed them before it back-propagated one network at a time.
-
-    The values are unchanged; what this keeps is the layout of the gradient that reaches the critic's value head (a
-    stride-K slice), so that the head's bias gradient is summed in the same order as before, bit for bit (the
-    golden runs, ``tests/test_golden.py``, amplify a last-bit difference through the group scale's top-k
-    incidence). The other scales enter the stack detached: no gradient reaches them.
-
-    :param values: the scale's values, ``(L, B, N)``
-    :param k: the scale's index
-    :param n_scales: the number of scales K
-    """
-    stacked = th.stack([values if j == k else values.detach() for j in range(n_scales)], dim=-1)  # (L, B, N, K)
-    return stacked[..., k]
 
 
 def clipped_value_loss(
@@ -114,8 +88,10 @@ def actor_losses(
             clipped += (th.abs(ratio - 1) > clip_range).float().sum().item()
             log_ratio = log_prob - part.old_log_prob
             kl_sum += ((th.exp(log_ratio) - 1) - log_ratio).sum().item()
+    policy_loss = -th.stack(policy_sums).sum() / n_valid
+    entropy_loss = -th.stack(entropy_sums).sum() / n_valid
     valid = float(n_valid)
-    return -in_order(policy_sums) / n_valid, -in_order(entropy_sums) / n_valid, clipped / valid, kl_sum / valid
+    return policy_loss, entropy_loss, clipped / valid, kl_sum / valid
 
 
 def critic_loss(
@@ -157,10 +133,9 @@ def critic_loss(
         values = policy.evaluate_critic(
             k, part.observations, part.critic_states[k], part.episode_starts, part_uniform
         )  # (length, B_g, N)
-        values = in_joint_layout(values, k, policy.n_scales)
         returns = part.returns[..., k]
         if normalize_values:
             returns = value_norm.normalize(returns)
         per_sample = clipped_value_loss(values, part.old_values[..., k], returns, clip_range_vf, value_loss, huber_delta)
         loss_sums.append(per_sample.sum())
-    return in_order(loss_sums) / n_valid
+    return th.stack(loss_sums).sum() / n_valid

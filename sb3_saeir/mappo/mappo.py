@@ -28,18 +28,13 @@ from sb3_saeir.common import checks
 from sb3_saeir.common.atomic import save_zip
 from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
-from sb3_saeir.common.checks import valid_batch_sizes
 from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
-from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, MultiAgentStates, SNMAPPOPolicy
-from sb3_saeir.common.registry import INTRINSIC_REWARDS
+from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
-from sb3_saeir.common.type_aliases import GroupedRecurrentSamples
+from sb3_saeir.common.type_aliases import GroupedRecurrentSamples, MultiAgentStates
 from sb3_saeir.common.utils import check_bool, check_seed
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback  # importing sb3_saeir.intrinsic registers its bonuses
-from sb3_saeir.mappo.losses import actor_losses, clipped_value_loss, critic_loss, scale_advantage_weights
-
-# names importable from here as before (the checks and the losses have modules of their own)
-__all__ = ["INTRINSIC_REWARDS", "MAPPO", "clipped_value_loss", "scale_advantage_weights", "valid_batch_sizes"]
+from sb3_saeir.mappo.losses import actor_losses, critic_loss, scale_advantage_weights
 
 SelfMAPPO = TypeVar("SelfMAPPO", bound="MAPPO")
 
@@ -334,9 +329,8 @@ class MAPPO(OnPolicyAlgorithm):
         self.policy.set_training_mode(False)
         rollout_buffer.reset()
         callback.on_rollout_start()
-        collector = RolloutCollector(self.policy, self.action_space, self.gamma, self.device)
-        double_buffered = use_double_buffering(type(self).__name__, self.double_buffered, env)
-        if not collector.collect(self, env, callback, rollout_buffer, n_rollout_steps, double_buffered):
+        collector = RolloutCollector(self, env, callback, rollout_buffer, n_rollout_steps)
+        if not collector.collect(use_double_buffering(type(self).__name__, self.double_buffered, env)):
             return False
         new_obs, dones = self._last_obs, self._last_episode_starts
         assert new_obs is not None and dones is not None

@@ -10,11 +10,9 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
-from sb3_saeir.mappo.mappo import INTRINSIC_REWARDS, MAPPO, scale_advantage_weights, valid_batch_sizes
+from sb3_saeir.mappo.mappo import MAPPO
 
 SelfSAEIR_PPO = TypeVar("SelfSAEIR_PPO", bound="SAEIR_PPO")
-
-__all__ = ["INTRINSIC_REWARDS", "SAEIR_PPO", "scale_advantage_weights", "valid_batch_sizes"]
 
 
 class SAEIR_PPO(MAPPO):

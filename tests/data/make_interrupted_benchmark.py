@@ -15,7 +15,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sb3_saeir.benchmark import BenchmarkEvalCallback, main
+from sb3_saeir.benchmark import main
+from sb3_saeir.run import RunEvalCallback as BenchmarkEvalCallback
 
 ARGV = [
     "--algos", "mappo", "saeir_ppo", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "900", "--n-games", "2",

@@ -1,18 +1,9 @@
-"""Worker processes that step blocks of games, with observations and rewards in shared memory.
+"""PettingZoo games in worker processes: :class:`MultiAgentWorkerVecEnv` over a :class:`GameWorkerPool`.
 
-:class:`GameWorkerPool` is what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` runs on with ``num_cpus >= 2``
-(``docs/guide/performance.md``, "Football across cores"). Worker ``w`` builds and steps the contiguous block of games
-``games_of_worker[w]``; one step is one message to each worker (``"step"``) and one reply (the infos of its slots),
-with actions, observations, rewards, terminations and truncations in shared arrays laid out as the vec env's slots
-(``slot = game * n_agents + agent``). Workers can be stepped one block at a time (:meth:`GameWorkerPool.step_async`
-with ``workers``), which is what double-buffered sampling uses.
-
-Each game behaves as in SuperSuit's in-process path (``pettingzoo_env_to_vec_env_v1`` + ``concat_vec_envs_v1``):
-``reset(seed=s)`` resets game ``g`` with ``s + g``; a game whose agents are all done puts each agent's last observation
-into its info as ``terminal_observation``, is reset without a seed, and its reset infos are merged into the step's
-infos. The same seeds and actions give the same observations, rewards, dones and infos (tested against the in-process
-path). Errors in a worker come back as :class:`GameWorkerError` with the worker's traceback; a worker that dies is
-reported as one; :meth:`GameWorkerPool.close` ends every worker (terminating those that do not answer).
+Each worker steps a contiguous block of games; observations, actions, rewards and dones sit in shared memory laid out
+as the slots, so a step is one message per worker. Each worker's games form a sampling group that steps on its own
+(double-buffered sampling). Same seeds and actions give the same streams as
+:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` (tested). Details: ``docs/guide/custom_env.md``.
 """
 
 from __future__ import annotations
@@ -32,21 +23,15 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
 
+from sb3_saeir.common.vec_env.base import GroupedVecEnv, RawStep
+from sb3_saeir.common.vec_env.game_checks import CheckedGameFactory, GameFaultError, ParallelEnvFactory, probe_game
+
 # Seconds a worker gets to answer "close" before it is terminated.
 CLOSE_TIMEOUT_S = 10.0
 
 
 class GameWorkerError(RuntimeError):
     """A game worker process raised an error or died."""
-
-
-class GameFaultError(ValueError):
-    """A game returned something the vec env cannot use (a missing reward, an observation that is not numbers, ...).
-
-    The message names the env, the game, the agent and the step of its episode. Raised by the check around each game
-    (:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`), and re-raised as it is when the game runs in a worker
-    process, so the two paths give the same error.
-    """
 
 
 # Exit status of a worker process that found the main module creating game workers while it was being imported again
@@ -129,7 +114,9 @@ class SharedSlots:
 
 
 class GameBlock:
-    """The games of one worker, stepped as SuperSuit's in-process path steps them (module docstring).
+    """The games of one worker, stepped as SuperSuit steps them in :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`:
+    a game whose agents are all done puts each agent's last observation into its info as ``terminal_observation``, is
+    reset without a seed, and its reset infos are merged into the step's infos.
 
     :param games: parallel envs (already wrapped as the vec env wraps them)
     :param first_slot: slot of the block's first agent
@@ -152,9 +139,9 @@ class GameBlock:
 
     def _write_obs(self, game: int, observations: dict[str, Any]) -> None:
         """Copy one game's observations into its rows. The assignment casts without a check (floats into an integer
-        array are truncated): the vec env's check around each game
-        (:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`), which the workers' games run in, has refused an
-        observation of another shape or of a dtype that does not cast by NumPy's ``same_kind`` rule already."""
+        array are truncated): the check around each game (:class:`~sb3_saeir.common.vec_env.game_checks.CheckedParallelEnv`)
+        has refused an observation of another shape or of a dtype that does not cast by NumPy's ``same_kind`` rule
+        already."""
         rows = self.slots.obs[self._rows(game)]
         for agent_index, agent in enumerate(self.agents):
             rows[agent_index] = observations[agent]
@@ -260,7 +247,11 @@ def unguarded_main_message(start_method: str) -> str:
 
 
 class GameWorkerPool:
-    """``n_workers`` processes stepping contiguous blocks of ``n_games`` games (module docstring).
+    """``n_workers`` processes stepping contiguous blocks of ``n_games`` games (worker ``w``: the block
+    ``games_of_worker[w]``), with observations, actions, rewards and dones in shared arrays laid out as the slots. A step
+    is one message to each worker and one reply (its slots' infos); workers can be stepped one at a time. A worker's
+    error comes back as :class:`GameWorkerError` with its traceback (a game's :class:`GameFaultError` as it is), a
+    worker that dies is reported as one, and either closes the pool.
 
     :param env_fn: callable returning one game (a PettingZoo ``ParallelEnv``), called ``n_games`` times in the workers
     :param n_games: games in all
@@ -475,58 +466,118 @@ class _GameFactory:
         return [self.env_fn() for _ in range(self.n)]
 
 
-class GameWorkerVecEnv:
-    """The gymnasium-style vector env of SuperSuit's ``concat_vec_envs_v1`` over a :class:`GameWorkerPool`: what
-    :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` steps when its games run in worker processes.
+class MultiAgentWorkerVecEnv(GroupedVecEnv):
+    """SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game stepped in worker processes, one slot per
+    agent (a :class:`~sb3_saeir.common.vec_env.base.GroupedVecEnv`; one sampling group per worker).
 
-    :param pool: the worker pool (its games already wrapped)
+    Use :func:`~sb3_saeir.common.vec_env.factory.make_multiagent_vec_env` with ``num_cpus >= 2`` to build one. It
+    gives what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` gives for the same seeds and actions, but per-game
+    access (``get_attr`` / ``set_attr`` / ``env_method`` / ``get_state`` of the games' own attributes) needs the games
+    in this process.
+
+    :param env_fn: callable returning one PettingZoo ``ParallelEnv`` (one game), called once here and ``n_games``
+        times in the workers (it is pickled with cloudpickle)
+    :param n_games: number of game copies G; the vec env has ``G * n_agents`` slots
+    :param num_cpus: worker processes, at most one per game (``min(num_cpus, n_games)`` start)
+    :param mark_truncation: set ``infos[i]["TimeLimit.truncated"]`` when a game is truncated (not terminated)
+    :param check_finite: raise :class:`~sb3_saeir.common.vec_env.game_checks.NonFiniteValueError` (naming the game,
+        agent and step) as soon as an observation or reward is NaN or infinite
+    :param start_method: the workers' multiprocessing start method (:class:`GameWorkerPool`)
     """
 
-    def __init__(self, pool: GameWorkerPool) -> None:
-        self.pool = pool
-        self.num_envs = pool.n_games * pool.n_agents
+    def __init__(
+        self,
+        env_fn: ParallelEnvFactory,
+        n_games: int,
+        num_cpus: int = 2,
+        mark_truncation: bool = False,
+        check_finite: bool = True,
+        start_method: str | None = None,
+    ) -> None:
+        exit_if_importing_main()  # before anything is built: a worker importing an unguarded script again
+        probe_env = probe_game(env_fn)
+        self._probe_env = probe_env
+        possible_agents = list(probe_env.possible_agents)
+        observation_space = probe_env.observation_space(possible_agents[0])
+        action_space = probe_env.action_space(possible_agents[0])
+        n_games = int(n_games)
+        #: the worker processes and their shared arrays
+        self.pool = GameWorkerPool(
+            CheckedGameFactory(env_fn),
+            n_games,
+            min(num_cpus, n_games),
+            len(possible_agents),
+            observation_space,
+            action_space,
+            start_method=start_method,
+        )
+        super().__init__(
+            n_games,
+            possible_agents,
+            observation_space,
+            action_space,
+            num_cpus=num_cpus,
+            mark_truncation=mark_truncation,
+            check_finite=check_finite,
+            render_mode=getattr(probe_env, "render_mode", None),
+            metadata=getattr(probe_env, "metadata", {}) or {},
+            sampling_groups=self.pool.slots_of_worker,
+            game_name=type(probe_env).__name__,
+        )
 
-    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, list[dict]]:
-        """Reset game ``g`` with ``seed + g`` (or unseeded); return copies of the observations and the infos."""
-        seeds = [None if seed is None else seed + game for game in range(self.pool.n_games)]
+    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    def _game_objects(self) -> list[Any]:
+        raise RuntimeError(
+            "Per-game access (get_attr/set_attr/env_method/get_state on arbitrary attributes) is only available "
+            "when the games run in this process: create the env with num_cpus=0."
+        )
+
+    def _reset_games(self, seed: int | None, options: dict | None) -> tuple[np.ndarray, list[dict[str, Any]]]:
+        seeds = [None if seed is None else seed + game for game in range(self.n_games)]
         infos = self.pool.reset(seeds, options)
-        return self.pool.slots.obs.copy(), infos
+        return self.pool.slots.obs.copy(), [dict(info) for info in infos]
 
-    def step_async(self, actions: np.ndarray, workers: Sequence[int] | None = None) -> None:
-        """Step the games of ``workers`` (default: all) with ``actions``, the rows of their slots in ``workers``
-        order (``(n_slots, ...)`` for all workers)."""
-        self.pool.step_async(np.asarray(actions), workers)
+    def _step_games_async(self, actions: np.ndarray, group: int | None) -> None:
+        # a group's rows only, written once into shared memory
+        self.pool.step_async(np.asarray(actions), None if group is None else [group])
 
-    def step_wait(
-        self, workers: Sequence[int] | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        """Wait for the step of ``workers`` (default: all); copies of their rows and their slots' infos.
-
-        :return: observations, rewards, terminations, truncations ``(n_rows, ...)`` and infos of the workers' slots
-        """
-        infos = self.pool.step_wait(workers)
-        rows = self.rows_of(workers)
-        slots = self.pool.slots
-        return (
-            slots.obs[rows].copy(),
-            slots.rewards[rows].copy(),
-            slots.terminations[rows].copy(),
-            slots.truncations[rows].copy(),
+    def _step_games_wait(self, group: int | None, episode_steps: np.ndarray) -> RawStep:
+        infos = self.pool.step_wait(None if group is None else [group])
+        rows = range(self.num_envs) if group is None else self.sampling_groups[group]
+        slots, rows_slice = self.pool.slots, slice(rows.start, rows.stop)
+        return self._raw_step(
+            group,
+            episode_steps,
+            slots.obs[rows_slice].copy(),
+            slots.rewards[rows_slice].copy(),
+            slots.terminations[rows_slice].copy(),
+            slots.truncations[rows_slice].copy(),
             infos,
         )
 
-    def rows_of(self, workers: Sequence[int] | None) -> slice:
-        """The slot rows of consecutive ``workers`` (default: all)."""
-        if workers is None:
-            return slice(0, self.num_envs)
-        workers = sorted(workers)
-        if workers != list(range(workers[0], workers[-1] + 1)):
-            raise ValueError(f"workers must be consecutive, got {workers}.")
-        return slice(self.pool.slots_of_worker[workers[0]].start, self.pool.slots_of_worker[workers[-1]].stop)
+    def _first_done_group(self, groups: list[int]) -> int:
+        return self.pool.first_done(groups)
 
-    def render(self) -> Any:
-        """Game 0's ``render()`` (SuperSuit renders the first game only)."""
-        return self.pool.render_first_game()
+    def _abandon_steps(self, groups: list[int]) -> None:
+        if not self.pool.closed:  # a failed worker closes the pool: nothing left to wait for
+            self.pool.step_wait(groups)
 
+    # ------------------------------------------------------------------ SB3 VecEnv API
     def close(self) -> None:
         self.pool.close()
+        if hasattr(self._probe_env, "close"):
+            self._probe_env.close()
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """Frame of game 0 (rendered in worker 0); ``None`` for the other slots."""
+        return [self.pool.render_first_game()] + [None] * (self.num_envs - 1)
+
+    def _render_game_zero(self) -> np.ndarray | None:
+        frame = self.pool.render_first_game()
+        return frame if self.render_mode == "rgb_array" else None
+
+    def __repr__(self) -> str:
+        return (
+            f"MultiAgentWorkerVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
+            f"num_cpus={self.num_cpus})"
+        )

@@ -1,0 +1,487 @@
+"""What a run folder records, and how it is read and written: the settings record (:class:`RunSpec`, ``spec.json``)
+and its comparison on resume, ``done.json``, the evaluation rows, the run's log, rl-zoo3's ``<task>/config.yml`` and
+``<task>/args.yml``, and the checkpoints a run can resume from. The layout: ``docs/guide/training.md``, "The run
+folder"; the file names: :mod:`sb3_saeir.common.run_files`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import zipfile
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
+from sb3_saeir.common.run_files import (
+    ARGS_FILE,
+    CHECKPOINT_NAME,
+    CONFIG_FILE,
+    DONE_FILE,
+    LEGACY_CHECKPOINT,
+    RESUME_LOG,
+    SPEC_FILE,
+)
+from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, utc_stamp
+from sb3_saeir.config import ConfigError, load_hyperparams
+from sb3_saeir.experiment import numbered_paths
+
+# Settings of a RunSpec compared on resume, by their command-line names.
+SPEC_SETTINGS = {
+    "n_timesteps": "-n",
+    "n_games": "--n-games",
+    "eval_freq": "--eval-freq",
+    "eval_episodes": "--eval-episodes",
+    "params": "-params",
+}
+# What a smaller budget than a run's record is told (a larger one trains the run longer).
+SHORTER = " (a run is not trained shorter; a larger -n trains it longer)"
+# Config keys a resume does not compare: mirrored by a setting (n_envs: --n-games, n_timesteps: -n), or a setting of
+# the machine, not of what is trained (compile).
+UNCOMPARED_CONFIG_KEYS = ("n_envs", "n_timesteps", "compile")
+# -params keys that may change at a resume: settings of the machine (docs/guide/training.md).
+RESUME_FREE_PARAMS = ("compile",)
+
+
+# ---------------------------------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class RunSpec:
+    """One training run's settings: what its ``spec.json`` records and a resume compares.
+
+    :param algo: the method
+    :param task: the task id
+    :param seed: the seed
+    :param n_timesteps: the run's budget in agent-steps
+    :param n_games: games (``None``: the config's ``n_envs``)
+    :param eval_freq: agent-steps between evaluations (0: none)
+    :param eval_episodes: game episodes per evaluation
+    :param params: config overrides (``-params``)
+    :param config: the config entry it trains with (overrides applied); ``None``: the packaged entry of ``algo`` and
+        ``task`` with ``params`` applied, read when needed (:meth:`resolved_config`)
+    :param options: the command's other settings that a resume must repeat, by their flags (``--save-freq``, ...)
+    """
+
+    algo: str
+    task: str
+    seed: int
+    n_timesteps: int
+    n_games: int | None = None
+    eval_freq: int = 50_000
+    eval_episodes: int = 20
+    params: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
+    config: dict[str, Any] | None = field(default=None, hash=False, compare=False)
+    options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
+
+    @property
+    def name(self) -> str:
+        return f"{self.algo}/{self.task}_s{self.seed}"
+
+    def resolved_config(self) -> dict[str, Any]:
+        """The config entry the run trains with: ``config``, else the packaged entry with ``params`` applied."""
+        if self.config is not None:
+            return dict(self.config)
+        return {**load_hyperparams(self.algo, self.task), **self.params}
+
+
+def _jsonable(value: Any) -> Any:
+    """``value`` as it reads back from JSON (tuples become lists, unknown objects their ``str``)."""
+    return json.loads(json.dumps(value, sort_keys=True, default=str))
+
+
+def spec_record(spec: RunSpec) -> dict[str, Any]:
+    """What a run's ``spec.json`` holds: its settings, the config entry it trains with, the package version
+    (``options`` only when the command has any)."""
+    from sb3_saeir import __version__
+
+    record = {**asdict(spec), "config": spec.resolved_config(), "version": __version__}
+    if not spec.options:
+        del record["options"]
+    return _jsonable(record)
+
+
+def _show(value: Any) -> str:
+    return "(unset)" if value is None else json.dumps(value, sort_keys=True)
+
+
+def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: tuple[str, ...] = ()) -> list[str]:
+    """What differs between a run's stored settings record and the planned run, as ``"<setting> <old> -> <new>"``.
+
+    The package version is recorded, not compared; config keys set by ``-params`` are reported once, as ``-params``;
+    :data:`UNCOMPARED_CONFIG_KEYS` are not compared; a larger budget than the record's is no difference (the run is
+    trained longer: :func:`extended_budget`), a smaller one is.
+
+    :param stored: the run's ``spec.json`` (or :func:`~sb3_saeir.train.legacy_train_record`)
+    :param planned: :func:`spec_record` of the planned run
+    :param ignored: flags of ``options`` not compared (``-f`` for a run resumed by its folder's path)
+    """
+    differences = [
+        f"{key} {_show(stored.get(key))} -> {_show(planned[key])}"
+        for key in ("algo", "task", "seed")
+        if stored.get(key) != planned[key]
+    ]
+    compared = {**stored, "params": _compared_params(stored.get("params"))}
+    planned_compared = {**planned, "params": _compared_params(planned["params"])}
+    differences += [
+        f"{flag} {_show(compared.get(key))} -> {_show(planned_compared[key])}{_shorter(key, stored)}"
+        for key, flag in SPEC_SETTINGS.items()
+        if compared.get(key) != planned_compared[key] and not (key == "n_timesteps" and extended_budget(stored, planned[key]))
+    ]
+    old_options, new_options = stored.get("options") or {}, planned.get("options") or {}
+    differences += [
+        f"{flag} {_show(old_options.get(flag))} -> {_show(new_options.get(flag))}"
+        for flag in sorted((set(old_options) | set(new_options)) - set(ignored))
+        if old_options.get(flag) != new_options.get(flag)
+    ]
+    old_config, new_config = stored.get("config") or {}, planned["config"]
+    skipped = set(stored.get("params") or {}) | set(planned["params"]) | set(UNCOMPARED_CONFIG_KEYS)
+    differences += [
+        f"config {key} {_show(old_config.get(key))} -> {_show(new_config.get(key))}"
+        for key in sorted((set(old_config) | set(new_config)) - skipped)
+        if old_config.get(key) != new_config.get(key)
+    ]
+    return differences
+
+
+def _compared_params(params: Any) -> Any:
+    """``-params`` as a resume compares them: without :data:`RESUME_FREE_PARAMS` (``None`` stays ``None``)."""
+    if not isinstance(params, dict):
+        return params
+    return {key: value for key, value in params.items() if key not in RESUME_FREE_PARAMS}
+
+
+def _shorter(key: str, stored: dict[str, Any]) -> str:
+    """:data:`SHORTER` for a budget that differs from a record's budget (it is smaller: a larger one is no difference)."""
+    budget = stored.get(key)
+    return SHORTER if key == "n_timesteps" and isinstance(budget, (int, float)) and not isinstance(budget, bool) else ""
+
+
+def extended_budget(stored: dict[str, Any], n_timesteps: int) -> int | None:
+    """The budget a run's record holds when ``n_timesteps`` is larger (the run is to be trained longer, an extension),
+    ``None`` when it is not larger (or the record holds no budget).
+
+    :param stored: the run's settings record
+    :param n_timesteps: the budget of the command
+    """
+    budget = stored.get("n_timesteps")
+    if isinstance(budget, (int, float)) and not isinstance(budget, bool) and n_timesteps > budget:
+        return int(budget)
+    return None
+
+
+def extension_record(stored: dict[str, Any], n_timesteps: int, finished: dict[str, Any] | None) -> dict[str, Any]:
+    """A run's settings record after an extension to ``n_timesteps``: the new budget, and the extension appended to
+    its ``extensions`` (the budget before, the new one, when, and the ``done.json`` of the shorter run if it finished).
+
+    :param stored: the run's settings record before
+    :param n_timesteps: the new budget
+    :param finished: the shorter run's ``done.json`` (``None``: it had not finished)
+    """
+    record = json.loads(json.dumps(stored))
+    extension = {"from": record["n_timesteps"], "to": n_timesteps, "at": utc_stamp(), "finished": finished}
+    record["n_timesteps"] = n_timesteps
+    if isinstance(record.get("config"), dict) and "n_timesteps" in record["config"]:
+        record["config"]["n_timesteps"] = n_timesteps
+    record["extensions"] = [*record.get("extensions", []), extension]
+    return record
+
+
+def read_spec_file(folder: Path) -> dict[str, Any] | None:
+    """A run folder's ``spec.json`` (``None`` when there is none).
+
+    :raises ~sb3_saeir.config.ConfigError: when it is not a JSON object
+    """
+    path = folder / SPEC_FILE
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise ConfigError(f"{path} is damaged (not valid JSON: {error}); restore it from a copy.") from None
+    if not isinstance(record, dict):
+        raise ConfigError(f"{path} is damaged (not a JSON object); restore it from a copy.")
+    return record
+
+
+def write_spec_file(folder: Path, record: dict[str, Any]) -> None:
+    """Write a run folder's ``spec.json`` (atomically): every writer of the file goes through here.
+
+    :param folder: the run's folder (created when missing)
+    :param record: the settings record (:func:`spec_record`, or :func:`extension_record` of a run trained longer)
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(folder / SPEC_FILE, json.dumps(record, indent=2, sort_keys=True) + "\n")
+
+
+# ---------------------------------------------------------------------------------------------------- done.json
+def done_record(wall_s: float, segments: int, timesteps: int) -> dict[str, Any]:
+    """What a finished run's ``done.json`` holds: the total wall time over its segments (rounded to 0.1 s), the
+    number of segments (processes that worked on it) and its agent-steps.
+
+    :param wall_s: total wall time in seconds
+    :param segments: the segments
+    :param timesteps: agent-steps
+    """
+    return {"wall_s": round(wall_s, 1), "segments": segments, "timesteps": timesteps}
+
+
+def read_done_file(folder: Path) -> dict[str, Any] | None:
+    """A run folder's ``done.json`` (``None``: the run has not finished)."""
+    path = folder / DONE_FILE
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def write_done_file(folder: Path, record: dict[str, Any]) -> None:
+    """Write a finished run's ``done.json`` (atomically): the one writer of the file, on the machine that trained the
+    run or, for a run trained elsewhere (Ray), on the driver with the record the run returned.
+
+    :param folder: the run's folder (created when missing)
+    :param record: :func:`done_record`
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(folder / DONE_FILE, json.dumps(record))
+
+
+# ---------------------------------------------------------------------------------------------------- row files
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of a CSV file, numbers as numbers (``[]`` when there is no file)."""
+    if not path.is_file():
+        return []
+    with open(path, newline="") as file:
+        return [{key: _number(value) for key, value in row.items()} for row in csv.DictReader(file)]
+
+
+def _number(value: str) -> Any:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return value
+    return int(number) if number.is_integer() and "." not in value and "e" not in value.lower() else number
+
+
+def write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
+    """Write rows as CSV (atomically: a kill during the write leaves the previous file)."""
+    keys = list(dict.fromkeys(key for row in rows for key in row))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=keys)
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_text(path, text.getvalue())
+
+
+def same_row(row: dict[str, Any], other: dict[str, Any]) -> bool:
+    """Whether two evaluation rows hold the same values (as written to CSV and read back)."""
+    return {key: _number(str(value)) for key, value in row.items()} == {
+        key: _number(str(value)) for key, value in other.items()
+    }
+
+
+def split_rows(
+    path: Path, done_steps: int | None, log: Callable[[str], None]
+) -> tuple[list[dict[str, Any]], dict[int, dict[str, Any]]]:
+    """The evaluation rows a run keeps (made up to its checkpoint) and those it re-does (made after it, by a segment
+    that was interrupted), by agent-steps; ``evaluations.csv`` is rewritten with the kept rows.
+
+    :param path: the run's ``evaluations.csv``
+    :param done_steps: agent-steps of the checkpoint, ``None`` for a fresh start (every row is re-done)
+    :param log: the run's log
+    """
+    old_rows = read_rows(path)
+    rows = [row for row in old_rows if done_steps is not None and row["timesteps"] <= done_steps]
+    lost = {int(row["timesteps"]): row for row in old_rows if done_steps is None or row["timesteps"] > done_steps}
+    if lost:
+        since = "the start" if done_steps is None else "the checkpoint"
+        log(f"evaluations made after {since}, at {sorted(lost)} agent-steps, are re-done")
+    if old_rows:
+        write_rows(path, rows)
+    return rows, lost
+
+
+class RunLog:
+    """What a run says about itself (resumes, skipped checkpoints, rows that cannot be restored): printed, with the
+    run's name when it has one, and appended to its ``resume.log``.
+
+    :param folder: the run's folder
+    :param name: the run's name in printed lines (``""``: lines start with ``Note:``)
+    """
+
+    def __init__(self, folder: Path, name: str = "") -> None:
+        self.path = folder / RESUME_LOG
+        self.name = name
+
+    def __call__(self, message: str) -> None:
+        print(f"{self.name}: {message}" if self.name else f"Note: {message}", flush=True)
+        with open(self.path, "a") as file:
+            file.write(f"{utc_stamp()} {message}\n")
+
+
+# ---------------------------------------------------------------------------------------------------- checkpoints
+def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
+    """The resumable checkpoints of a run folder, by agent-steps: ``rl_model_<steps>_steps.zip``, and a benchmark
+    run's ``checkpoint.zip`` of the older layout (its agent-steps read from the zip)."""
+    prefix, suffix = CHECKPOINT_NAME.split("{steps}")
+    found = numbered_paths(folder, prefix, suffix)
+    legacy = Path(folder) / LEGACY_CHECKPOINT
+    if legacy.is_file():
+        steps = saved_timesteps(legacy)
+        found.setdefault(steps if steps is not None else -1, legacy)
+    return found
+
+
+def saved_timesteps(path: Path) -> int | None:
+    """The agent-steps a saved model zip records (``num_timesteps`` in its ``data``), without loading it (``None``
+    when the zip cannot be read)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return int(json.loads(archive.read("data"))["num_timesteps"])
+    except Exception:  # a damaged zip: checkpoint_problem names the damage
+        return None
+
+
+def newest_loading_checkpoint(folder: Path, final_model: Path | None = None) -> tuple[Path | None, list[tuple[Path, str]]]:
+    """The newest checkpoint of a run folder that loads (``None``: none does), and the newer ones that do not, with
+    why (:func:`~sb3_saeir.common.run_state.checkpoint_problem`).
+
+    :param folder: the run's folder
+    :param final_model: the run's final model (``<task>.zip``): a resume point too when it holds a resume state (a
+        finished run's, written before its final evaluation) and is newer than the checkpoints
+    """
+    checkpoints = checkpoint_steps(folder)
+    if final_model is not None and final_model.is_file() and not checkpoint_problem(final_model):
+        steps = saved_timesteps(final_model)
+        if steps is not None and steps not in checkpoints and load_resume_state(final_model) is not None:
+            checkpoints[steps] = final_model
+    skipped: list[tuple[Path, str]] = []
+    for steps in sorted(checkpoints, reverse=True):
+        problem = checkpoint_problem(checkpoints[steps])
+        if not problem:
+            return checkpoints[steps], skipped
+        skipped.append((checkpoints[steps], problem))
+    return None, skipped
+
+
+def keep_damaged_checkpoints(skipped: list[tuple[Path, str]]) -> None:
+    """Move checkpoints that do not load aside (``<name>.damaged-<UTC time>``; nothing deleted), so that the run's
+    next checkpoints do not sit beside them (a folder in a checkpoint's name is renamed aside whole)."""
+    for path, _ in skipped:
+        if path.is_dir():
+            path.rename(unused_name(path, "damaged"))
+            continue
+        keep_damaged(path)
+        path.unlink()
+
+
+@dataclass(frozen=True)
+class ResumePoint:
+    """Where a run continues: its last checkpoint that loads and the checkpoint's resume state.
+
+    :param checkpoint: the checkpoint
+    :param state: its resume state (``None``: a plain model zip, resumed approximately)
+    :param skipped: the newer checkpoints that do not load, with why (the resume falls back past them)
+    """
+
+    checkpoint: Path
+    state: dict[str, Any] | None
+    skipped: tuple[tuple[Path, str], ...] = ()
+
+    @property
+    def steps(self) -> int:
+        """Agent-steps of the checkpoint."""
+        steps = self.state["num_timesteps"] if self.state is not None else saved_timesteps(self.checkpoint)
+        return int(steps or 0)
+
+    def total_timesteps(self, n_timesteps: int) -> int:
+        """The agent-step count at which the run ends: where its ``learn`` started (0, or a ``-i`` model's count)
+        plus its budget ``n_timesteps``."""
+        start = self.state["model"].get("_num_timesteps_at_start", 0) if self.state is not None else 0
+        return int(start) + n_timesteps
+
+
+# ---------------------------------------------------------------------------------------------------- rl-zoo3's files
+# What <task>/args.yml and <task>/config.yml hold, for the message on a damaged one.
+RUN_FILES = {
+    ARGS_FILE: "the command line that started the run, one 'option: value' line per option",
+    CONFIG_FILE: "the run's resolved hyperparameters, one 'key: value' line per key",
+}
+
+
+def read_run_file(path: Path) -> dict[str, Any]:
+    """A run's ``<task>/args.yml`` or ``<task>/config.yml``: a YAML mapping (``args.yml`` with an integer ``seed``).
+
+    :param path: the file
+    :raises ~sb3_saeir.config.ConfigError: naming the file, what is wrong with it and the fix
+    """
+    try:
+        content = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = f"not valid YAML{where}: {getattr(error, 'problem', None) or error}"
+    else:
+        problem = ""
+        if not isinstance(content, dict) or not content:
+            problem = f"not a mapping of {path.stem}, but {type(content).__name__} {str(content)[:40]!r}"
+        elif path.name == ARGS_FILE and (isinstance(content.get("seed"), bool) or not isinstance(content.get("seed"), int)):
+            problem = f"no integer seed (seed: {content.get('seed')!r})"
+    if problem:
+        raise ConfigError(
+            f"--resume: {path} is damaged ({problem}). It holds {RUN_FILES[path.name]}: restore it from a copy, or "
+            f"write it again as another run's {path.name} (the run's own values), then resume; or start a new run "
+            "without --resume."
+        )
+    return content
+
+
+def stored_record(
+    folder: Path, algo: str, task: str, legacy_record: Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
+) -> dict[str, Any]:
+    """The settings record of the run in ``folder``: its ``spec.json``, or for a run of an older version its
+    ``<task>/args.yml`` and ``<task>/config.yml`` made into one by ``legacy_record``.
+
+    :param folder: the run's folder
+    :param algo: the method of the command
+    :param task: the task of the command (``<task>/`` holds the older files)
+    :param legacy_record: the record of an older run from its ``args.yml`` and ``config.yml``
+    :raises ~sb3_saeir.config.ConfigError: when the folder holds no run of this command, or its record is damaged
+    """
+    try:
+        record = read_spec_file(folder)
+    except ConfigError as error:
+        raise ConfigError(f"--resume: {error}") from None
+    if record is not None:
+        if (record.get("algo"), record.get("task")) != (algo, task):
+            raise ConfigError(
+                f"--resume: {folder} holds a run of {record.get('algo')} on {record.get('task')}: it is not a run of this "
+                "command."
+            )
+        return record
+    args_path = folder / task / ARGS_FILE
+    if not args_path.is_file():
+        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE} nor {task}/{ARGS_FILE}: it is not a run of this command.")
+    stored_args = read_run_file(args_path)
+    return legacy_record(stored_args, read_run_file(folder / task / CONFIG_FILE))
+
+
+def save_run_config(params_path: Path, config: dict[str, Any], command: dict[str, Any]) -> None:
+    """``<task>/config.yml`` (the resolved hyperparameters) and ``<task>/args.yml`` (the command), as rl-zoo3 writes
+    them, each atomically.
+
+    :param params_path: the run's ``<task>/`` folder
+    :param config: the resolved hyperparameters
+    :param command: the command's options
+    """
+    atomic_write_text(params_path / CONFIG_FILE, yaml.safe_dump(config_record(config), sort_keys=True))
+    atomic_write_text(params_path / ARGS_FILE, yaml.safe_dump(dict(sorted(command.items()))))
+
+
+def config_record(hyperparams: dict[str, Any]) -> dict[str, Any]:
+    """The resolved hyperparameters as ``<task>/config.yml`` holds them (objects as their ``str``)."""
+    return {
+        key: (str(value) if not isinstance(value, (int, float, str, bool, list, dict, type(None))) else value)
+        for key, value in sorted(hyperparams.items())
+    }

@@ -1,0 +1,374 @@
+"""``python -m sb3_saeir.zoo train|enjoy [rl-zoo3 arguments]``: the package's methods and tasks registered in rl-zoo3
+(:mod:`sb3_saeir.zoo.registration`), the arguments adjusted for a package task, then rl-zoo3's own ``train()`` (with
+:class:`~sb3_saeir.zoo.manager.RunExperimentManager`) or ``enjoy()``. The manual, commands and pitfalls:
+``docs/guide/zoo.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sb3_saeir.command_line import check_folder, check_seed_option, one_line_warnings, resume_target
+from sb3_saeir.common.extras import MissingExtraError, require_extra
+from sb3_saeir.common.run_files import SPEC_FILE
+from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
+from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
+from sb3_saeir.evaluation import summarise_episodes
+from sb3_saeir.experiment import find_run_folder
+from sb3_saeir.run_record import read_spec_file
+from sb3_saeir.zoo.registration import (
+    WRAPPER_NAME,
+    EnjoySession,
+    GameMonitor,
+    is_package_env,
+    register_algorithms,
+    register_gym_envs,
+)
+
+if TYPE_CHECKING:
+    from sb3_saeir.zoo.manager import ZooTrain
+
+
+def _load_zoo_entry(conf: str, env_id: str) -> dict[str, Any] | None:
+    """The hyperparameters rl-zoo3 will read for ``env_id`` from ``conf`` (same lookup: yaml / .py / module, then
+    ``default``), or ``None`` if they cannot be read here (rl-zoo3 then reports the problem itself)."""
+    import importlib
+
+    try:
+        if conf.endswith((".yml", ".yaml")):
+            with open(conf) as file:
+                entries = load_yaml(file) or {}
+        elif conf.endswith(".py"):
+            namespace: dict[str, Any] = {}
+            exec(Path(conf).read_text(), namespace)
+            entries = namespace["hyperparams"]
+        else:
+            entries = importlib.import_module(conf).hyperparams
+    except ConfigError as error:  # a duplicate key: rl-zoo3 would keep the last value without a word
+        raise ConfigError(f"--conf-file {conf}: {error}") from error
+    except Exception:
+        return None
+    entry = entries.get(env_id, entries.get("default"))
+    return dict(entry) if isinstance(entry, dict) else None
+
+
+def _mini_parser(options: Sequence[tuple[Sequence[str], dict[str, Any]]]) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
+    for flags, kwargs in options:
+        parser.add_argument(*flags, **kwargs)
+    return parser
+
+
+def prepare_train_args(argv: Sequence[str]) -> list[str]:
+    """rl-zoo3 ``train`` arguments for a package task: default ``--conf-file`` to the packaged config of the method and
+    add the ``vec_env_wrapper`` to ``-params`` unless the config entry or ``-params`` has one. Several ``-params`` groups
+    are merged into one (rl-zoo3 would keep only the last). Arguments for other envs are returned unchanged.
+
+    :param argv: the arguments after ``train``
+    :return: the arguments for ``rl_zoo3.train.train()``
+    """
+    parser = _mini_parser(
+        [
+            (["--algo"], {"default": "ppo"}),
+            (["--env"], {"default": "CartPole-v1"}),
+            (["-conf", "--conf-file"], {"default": None}),
+            (["-params", "--hyperparams"], {"nargs": "+", "action": "append", "default": []}),
+        ]
+    )
+    args, rest = parser.parse_known_args(list(argv))
+    if not is_package_env(args.env):
+        return list(argv)
+    conf = args.conf_file
+    if conf is None and args.algo in ALGOS:
+        conf = str(config_path(args.algo))
+    params = [item for group in args.hyperparams for item in group]
+    keys = {item.split(":")[0] for item in params}
+    entry = _load_zoo_entry(conf, args.env) if conf is not None else None
+    if "vec_env_wrapper" not in keys and not (entry is not None and entry.get("vec_env_wrapper")):
+        params.append(f"vec_env_wrapper:{WRAPPER_NAME!r}")
+    new_argv = [*rest, "--algo", args.algo, "--env", args.env]
+    if conf is not None:
+        new_argv += ["--conf-file", conf]
+    if params:
+        new_argv += ["-params", *params]
+    return new_argv
+
+
+def check_train_args(argv: Sequence[str]) -> None:
+    """The checks of ``python -m sb3_saeir.train`` on the rl-zoo3 ``train`` arguments of a package task (made by
+    :func:`prepare_train_args`), before rl-zoo3 creates anything: the log and tensorboard folders can be written, and
+    ``n_envs`` (config entry or ``-params``) is a positive integer (rl-zoo3 fails on it after creating the run folder).
+
+    :param argv: the arguments for ``rl_zoo3.train.train()``
+    :raises ~sb3_saeir.config.ConfigError: naming the first bad option
+    """
+    parser = _mini_parser(
+        [
+            (["--env"], {"default": "CartPole-v1"}),
+            (["-conf", "--conf-file"], {"default": None}),
+            (["-f", "--log-folder"], {"default": "logs"}),
+            (["-tb", "--tensorboard-log"], {"default": ""}),
+            (["-params", "--hyperparams"], {"nargs": "+", "action": "append", "default": []}),
+        ]
+    )
+    args = parser.parse_known_args(list(argv))[0]
+    if not is_package_env(args.env):
+        return
+    check_folder("-f/--log-folder", args.log_folder)
+    check_folder("-tb/--tensorboard-log", args.tensorboard_log or None)
+    for item in (item for group in args.hyperparams for item in group):
+        check_zoo_param(item)
+    items = [item for group in args.hyperparams for item in group if item.split(":")[0] == "n_envs"]
+    entry = _load_zoo_entry(args.conf_file, args.env) if args.conf_file is not None else None
+    check_n_envs(parse_params(items[-1:])["n_envs"] if items else (entry or {}).get("n_envs"))
+
+
+def check_zoo_param(item: str) -> None:
+    """Refuse a ``-params`` entry that rl-zoo3 cannot read (it evaluates each value as a Python expression, so a bare
+    word such as ``compile:bogus`` is a ``NameError`` there), naming the value and how to write a string.
+
+    :param item: one ``key:value`` entry
+    :raises ~sb3_saeir.config.ConfigError: naming the entry and the fix
+    """
+    from rl_zoo3.utils import StoreDict
+
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("-params", nargs="+", action=StoreDict)
+    key, _, value = item.partition(":")
+    try:
+        parser.parse_args(["-params", item])
+    except Exception as error:  # rl-zoo3's eval: NameError, SyntaxError, ...
+        raise ConfigError(
+            f"-params {item}: rl-zoo3 reads each value as a Python expression and {value!r} is not one "
+            f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else 'no detail'}); write a string in "
+            f"quotes: -params \"{key}:'{value}'\"."
+        ) from None
+
+
+def parse_enjoy_args(argv: Sequence[str]) -> tuple[list[str], argparse.Namespace]:
+    """rl-zoo3 ``enjoy`` arguments for a package task (:func:`prepare_enjoy_args`) and the options the launcher reads
+    itself (``env``, ``verbose``), from one parse.
+
+    :param argv: the arguments after ``enjoy``
+    :return: the arguments for ``rl_zoo3.enjoy.enjoy()`` and the launcher's options
+    """
+    parser = _mini_parser(
+        [
+            (["--env"], {"default": "CartPole-v1"}),
+            (["--n-envs"], {"type": int, "default": None}),
+            (["--verbose"], {"type": int, "default": 1}),
+        ]
+    )
+    args, rest = parser.parse_known_args(list(argv))
+    if not is_package_env(args.env):
+        return list(argv), args
+    if "--verbose" in argv or any(item.startswith("--verbose=") for item in argv):
+        rest += ["--verbose", str(args.verbose)]
+    n_envs = args.n_envs if args.n_envs is not None else 2
+    if n_envs < 2:
+        print(
+            f"sb3_saeir.zoo: replaying 2 games instead of --n-envs {n_envs} (rl_zoo3.enjoy needs one slot per env "
+            "when --n-envs is 1; a game has one slot per agent)."
+        )
+        n_envs = 2
+    if "--no-render" not in rest:
+        print(
+            "sb3_saeir.zoo: replaying without a window (--no-render added): the package's tasks have no 'human' "
+            "render mode (python -m sb3_saeir.enjoy --gif writes a GIF of a game)."
+        )
+        rest.append("--no-render")
+    return [*rest, "--env", args.env, "--n-envs", str(n_envs)], args
+
+
+def prepare_enjoy_args(argv: Sequence[str]) -> list[str]:
+    """rl-zoo3 ``enjoy`` arguments for a package task: at least 2 games (``rl_zoo3.enjoy`` crashes with ``--n-envs 1``
+    on a multi-agent env) and ``--no-render`` (the tasks have no ``"human"`` render mode, which rl-zoo3 asks for
+    otherwise). Arguments for other envs are returned unchanged."""
+    return parse_enjoy_args(argv)[0]
+
+
+def _print_enjoy_summary(monitors: Sequence[GameMonitor]) -> None:
+    episodes = [
+        {key: float(value) for key, value in episode.items() if key != "t" and value is not None}
+        for monitor in monitors
+        for episode in monitor.episodes
+    ]
+    n_games = sum(monitor.num_envs // monitor.get_attr("n_agents")[0] for monitor in monitors)
+    if not episodes:
+        print(f"sb3_saeir.zoo: no game finished (each of the {n_games} games needs a full episode; raise -n).")
+        return
+    summary = summarise_episodes(episodes)
+    print(f"sb3_saeir.zoo: {len(episodes)} finished games ({n_games} in parallel)")
+    print(f"Mean team return: {summary['ep_rew_mean']:.2f} +/- {summary['ep_rew_std']:.2f}")
+    print(f"Mean episode length (game steps): {summary['ep_len_mean']:.2f} +/- {summary['ep_len_std']:.2f}")
+    for name in sorted({key for episode in episodes for key in episode} - {"r", "l"}):
+        print(f"Mean {name}: {summary[f'{name}_mean']:.3f}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m sb3_saeir.zoo train|enjoy [rl-zoo3 arguments]``: register the package's algorithms and envs in
+    rl-zoo3, adjust the arguments (:func:`prepare_train_args`, :func:`prepare_enjoy_args`) and run rl-zoo3's
+    ``train()`` / ``enjoy()``.
+
+    :param argv: the arguments (default: ``sys.argv[1:]``)
+    :return: exit status
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] not in ("train", "enjoy"):
+        print(
+            "usage: python -m sb3_saeir.zoo {train,enjoy} [rl-zoo3 arguments]\n"
+            f"  algorithms added to rl-zoo3: {', '.join(register_algorithms())}\n"
+            f"  env ids (--env): {', '.join(register_gym_envs())}\n"
+            "  see `python -m sb3_saeir.zoo train --help` and docs/guide/zoo.md.",
+            file=sys.stderr,
+        )
+        return 2
+    command, rest = argv[0], argv[1:]
+    try:
+        require_extra("rl_zoo3", "zoo", "python -m sb3_saeir.zoo")
+    except MissingExtraError as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
+    register_algorithms()
+    register_gym_envs()
+    saved_argv = sys.argv
+    try:
+        with one_line_warnings("sb3_saeir.zoo"):
+            if command == "train":
+                return _run_train(rest)
+            return _run_enjoy(rest)
+    finally:
+        sys.argv = saved_argv
+
+
+def _run_train(argv: Sequence[str]) -> int:
+    try:
+        resume, argv = _mini_parser(
+            [(["--resume"], {"nargs": "?", "type": resume_target, "const": 0, "default": None})]
+        ).parse_known_args(list(argv))
+        new_argv = prepare_train_args(argv)
+        check_train_args(new_argv)
+    except ConfigError as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
+    sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
+    package_env = is_package_env(_mini_parser([(["--env"], {"default": "CartPole-v1"})]).parse_known_args(new_argv)[0].env)
+    if resume.resume is not None and not package_env:
+        print("sb3_saeir.zoo: error: --resume continues runs of the package's tasks only.", file=sys.stderr)
+        return 2
+    from sb3_saeir.zoo.manager import ZooTrain
+
+    command = ZooTrain(package_env, resume.resume)
+    try:
+        if command.resume is not None:
+            command.folder, command.record, new_argv = claim_resumed_run(new_argv, command.resume, command)
+        sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
+        train_with_manager(command)
+    except (ConfigError, RunFolderInUseError) as error:
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 2
+    finally:
+        if command.lock is not None:
+            command.lock.release()
+    return 0
+
+
+def train_with_manager(command: ZooTrain) -> None:
+    """rl-zoo3's ``train()`` (its arguments in ``sys.argv``) with :class:`~sb3_saeir.zoo.manager.RunExperimentManager`
+    as its ``ExperimentManager``.
+
+    :param command: the launcher's :class:`~sb3_saeir.zoo.manager.ZooTrain`
+    """
+    import rl_zoo3.train
+
+    from sb3_saeir.zoo.manager import RunExperimentManager
+
+    # rl-zoo3's train() parses its ~50 options, then builds `ExperimentManager(args, ...)` by the name its module
+    # imported, with no way to pass a subclass: that name is bound to the package's subclass here, the one place, for
+    # this call only (rl-zoo3's class is put back after it)
+    original = rl_zoo3.train.ExperimentManager
+    rl_zoo3.train.ExperimentManager = partial(RunExperimentManager, zoo_train=command)  # type: ignore[assignment,misc]
+    try:
+        rl_zoo3.train.train()
+    finally:
+        rl_zoo3.train.ExperimentManager = original  # type: ignore[misc]
+
+
+def claim_resumed_run(argv: list[str], resume: int | Path, command: ZooTrain) -> tuple[Path, dict[str, Any], list[str]]:
+    """The run folder ``--resume`` names (the latest run, run ``N`` or a folder's path), locked (the lock kept in
+    ``command.lock``), its settings record, and rl-zoo3's arguments with the run's own seed: a ``--seed`` other than
+    the run's (or -1, rl-zoo3's default) is refused.
+
+    :param argv: rl-zoo3's ``train`` arguments
+    :param resume: ``--resume``'s value
+    :param command: the launcher's :class:`~sb3_saeir.zoo.manager.ZooTrain`, whose ``lock`` the folder's lock becomes
+    :raises ~sb3_saeir.config.ConfigError: naming the problem and the fix
+    """
+    from rl_zoo3.utils import EnvironmentName
+
+    options, _ = _mini_parser(
+        [
+            (["--algo"], {"default": "ppo"}),
+            (["--env"], {"default": "CartPole-v1"}),
+            (["-f", "--log-folder"], {"default": "logs"}),
+            (["--seed"], {"type": int, "default": -1}),
+        ]
+    ).parse_known_args(argv)
+    folder = find_run_folder(options.log_folder, options.algo, EnvironmentName(options.env).gym_id, resume)
+    command.lock = RunFolderLock(folder).acquire()
+    try:
+        record = read_spec_file(folder)
+    except ConfigError as error:
+        raise ConfigError(f"--resume: {error}") from None
+    if record is None:
+        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE}: it is not a run of this command.")
+    seed = int(record["seed"])
+    if options.seed not in (-1, seed):
+        raise ConfigError(
+            f"--resume: {folder} was made with --seed {seed}, not --seed {options.seed}: a run goes on with its own "
+            f"seed. Give --seed {seed} (or no --seed), or start a new run without --resume."
+        )
+    seed_free = _mini_parser([(["--seed"], {"default": None})]).parse_known_args(argv)[1]
+    return folder, record, [*seed_free, "--seed", str(seed)]
+
+
+def _run_enjoy(argv: Sequence[str]) -> int:
+    from rl_zoo3.enjoy import enjoy
+    from rl_zoo3.exp_manager import ExperimentManager
+
+    from sb3_saeir.zoo.manager import one_line
+
+    new_argv, options = parse_enjoy_args(argv)
+    if is_package_env(options.env):
+        try:
+            check_seed_option(_mini_parser([(["--seed"], {"type": int, "default": 0})]).parse_known_args(new_argv)[0].seed)
+        except ConfigError as error:
+            print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+            return 2
+    # rl_zoo3.enjoy builds its envs with this class attribute (no option for it): the game envs are only constructed,
+    # so build them in this process, not in SubprocVecEnv workers; restored afterwards
+    saved_vec_env_cls = ExperimentManager.default_vec_env_cls
+    if is_package_env(options.env):
+        ExperimentManager.default_vec_env_cls = DummyVecEnv
+    sys.argv = ["python -m sb3_saeir.zoo enjoy", *new_argv]
+    try:
+        with EnjoySession() as session:
+            enjoy()
+        if options.verbose > 0 and session.monitors:
+            _print_enjoy_summary(session.monitors)
+    except (AssertionError, ValueError, TypeError, KeyError, OSError, MemoryError) as error:
+        if not is_package_env(options.env):
+            raise
+        # rl-zoo3's own checks (a missing -f folder or --exp-id run are assertions), a model or env that cannot load
+        print(f"sb3_saeir.zoo: error: enjoy: {one_line(error)}", file=sys.stderr)
+        return 2
+    finally:
+        ExperimentManager.default_vec_env_cls = saved_vec_env_cls
+    return 0

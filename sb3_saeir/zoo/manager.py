@@ -1,0 +1,203 @@
+"""The launcher's ``train``: rl-zoo3's ``ExperimentManager`` with the package's hooks (:class:`RunExperimentManager`),
+bound by :func:`sb3_saeir.zoo.launcher.train_with_manager`. On a package task the run is a :class:`~sb3_saeir.run.Run`
+in rl-zoo3's run folder: rl-zoo3 builds the config, the env and the model, the run does the rest.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from pprint import pprint
+from typing import Any
+
+from rl_zoo3.exp_manager import ExperimentManager
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+
+from sb3_saeir.common.callbacks import BudgetEstimate
+from sb3_saeir.common.run_lock import RunFolderLock
+from sb3_saeir.config import ConfigError, load_yaml
+from sb3_saeir.experiment import Experiment
+from sb3_saeir.run import Run, RunOutput
+from sb3_saeir.run_record import RunSpec, config_record
+
+
+@dataclass
+class ZooTrain:
+    """What the launcher knows of a ``train`` command before rl-zoo3 starts.
+
+    :param package_env: the env is a package task (the run is a :class:`~sb3_saeir.run.Run`); else rl-zoo3 trains
+        as it does, but for the YAML loader
+    :param resume: ``--resume``'s value (``None``: a new run)
+    :param folder: the run folder ``--resume`` names (:func:`~sb3_saeir.zoo.launcher.claim_resumed_run`)
+    :param record: its settings record
+    :param lock: the run folder's lock: the resumed folder's, or the new run's (taken by
+        :meth:`RunExperimentManager.setup_experiment`); the launcher gives it back
+    """
+
+    package_env: bool
+    resume: int | Path | None = None
+    folder: Path | None = None
+    record: dict[str, Any] | None = None
+    lock: RunFolderLock | None = None
+
+
+class RunExperimentManager(ExperimentManager):
+    """rl-zoo3's ``ExperimentManager`` for ``python -m sb3_saeir.zoo train``.
+
+    It reads a YAML ``--conf-file`` with the package's loader (``5e-4`` is a float, a key given twice is refused). On
+    a package task: its setup runs in the run's folder (the one ``--resume`` continues, with its seed; a new run's
+    folder locked before rl-zoo3 creates it) and a failure removes the folders it created and becomes one line;
+    ``config.yml`` and ``args.yml`` are written for a new run only; ``learn`` is a :class:`~sb3_saeir.run.Run`, which
+    saves the final model itself.
+
+    :param args: rl-zoo3's ``ExperimentManager`` arguments
+    :param zoo_train: the launcher's command
+    :param kwargs: rl-zoo3's ``ExperimentManager`` keyword arguments
+    """
+
+    def __init__(self, *args: Any, zoo_train: ZooTrain, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.zoo_train = zoo_train
+        self.saeir_config: dict[str, Any] = {}
+        if zoo_train.folder is not None:  # the resumed run's folder and seed, not a new run folder
+            self.save_path = str(zoo_train.folder)
+            self.params_path = f"{zoo_train.folder}/{self.env_name}"
+            self.seed = int((zoo_train.record or {})["seed"])
+
+    def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """rl-zoo3's (2.9.2) ``read_hyperparameters``, but a YAML file is read with
+        :func:`~sb3_saeir.config.load_yaml` rather than ``yaml.safe_load`` (which leaves ``5e-4`` a string)."""
+        if not self.config.endswith((".yml", ".yaml")):
+            return super().read_hyperparameters()
+        print(f"Loading hyperparameters from: {self.config}")
+        with open(self.config) as file:
+            hyperparams_dict = load_yaml(file)
+        if self.env_name.gym_id in list(hyperparams_dict.keys()):
+            hyperparams = hyperparams_dict[self.env_name.gym_id]
+        elif self._is_atari:
+            hyperparams = hyperparams_dict["atari"]
+        elif "default" in hyperparams_dict:
+            print("Using 'default' hyperparameters")
+            hyperparams = hyperparams_dict["default"]
+        else:
+            raise ValueError(f"Hyperparameters not found for {self.algo}-{self.env_name.gym_id} in {self.config}")
+        if self.storage and self.study_name and self.trial_id:
+            print("Loading from Optuna study...")
+            hyperparams.update(self.load_trial(self.storage, self.study_name, self.trial_id))
+        if self.custom_hyperparams is not None:
+            hyperparams.update(self.custom_hyperparams)
+        if "env_kwargs" in hyperparams and self.env_kwargs:
+            hyperparams.update({"env_kwargs": self.env_kwargs})
+            if self._eval_env_kwargs_args is None:
+                self.eval_env_kwargs = hyperparams["env_kwargs"]
+        saved_hyperparams = OrderedDict([(key, hyperparams[key]) for key in sorted(hyperparams.keys())])
+        print("Default hyperparameters for environment (ones being tuned will be overridden):")
+        pprint(saved_hyperparams)
+        return hyperparams, saved_hyperparams
+
+    def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
+        """rl-zoo3's setup (config, env, model) in the run's folder, holding its lock; on a package task a failure
+        removes the folders it created and becomes a :class:`~sb3_saeir.config.ConfigError` of one line."""
+        if not self.zoo_train.package_env:
+            return super().setup_experiment()
+        folders = [Path(self.log_path).parent, Path(self.log_path), Path(self.save_path)]
+        created = [folder for folder in folders if not folder.exists()]
+        new_run = self.zoo_train.lock is None
+        if new_run:  # before rl-zoo3 creates it: two commands racing for one run number do not share it
+            self.zoo_train.lock = RunFolderLock(self.save_path).acquire()
+        try:
+            result = super().setup_experiment()
+        except Exception as error:
+            if new_run and self.zoo_train.lock is not None:
+                self.zoo_train.lock.release()
+                self.zoo_train.lock = None
+            remove_created_folders(created)
+            raise ConfigError(f"cannot set up {self.algo} on {self.env_name}: {one_line(error)}") from error
+        self.saeir_config = dict(result[1]) if result is not None else {}
+        return result
+
+    def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
+        """rl-zoo3's ``config.yml`` and ``args.yml``, for a new run only (a resumed run keeps its own)."""
+        if self.zoo_train.folder is None:
+            super()._save_config(saved_hyperparams)
+
+    def learn(self, model: BaseAlgorithm) -> None:
+        """On a package task, the run: :meth:`~sb3_saeir.run.Run.execute` in rl-zoo3's run folder, on the env and the
+        model rl-zoo3 built (or loaded with ``-i``). Its evaluations (game episodes, the task's main metric; at the
+        start, every ``--eval-freq // n_envs`` vec steps on the grid, at the end) and resumable checkpoints (every
+        ``--save-freq // n_envs`` vec steps) take the place of rl-zoo3's evaluation and checkpoint callbacks (the
+        effective periods are rl-zoo3's); with ``--resume``, the run goes on from its folder's checkpoint.
+
+        :param model: the model rl-zoo3 built
+        """
+        if not self.zoo_train.package_env:
+            super().learn(model)
+            return
+        env = model.get_env()
+        assert env is not None
+        for callback in self.callbacks:
+            if isinstance(callback, EvalCallback):
+                callback.eval_env.close()
+        callbacks = [c for c in self.callbacks if not isinstance(c, (EvalCallback, CheckpointCallback))]
+        resume, task = self.zoo_train.resume, self.env_name.gym_id
+
+        def period(freq: int) -> int:
+            """rl-zoo3's callback period in agent-steps (0: off); its setup already made ``--eval-freq`` and
+            ``--save-freq`` ``freq // n_envs`` vec steps, and a vec step is ``env.num_envs`` agent-steps."""
+            return freq * env.num_envs if freq > 0 else 0
+
+        options = {"--save-freq": self.save_freq, "-i": self.trained_agent, "--device": self.device}
+        spec = RunSpec(
+            self.algo, task, self.seed, int(self.n_timesteps), self.n_envs, period(self.eval_freq),
+            self.n_eval_episodes, {}, config_record(self.saeir_config), options,
+        )  # fmt: skip
+        run = Run(
+            Path(self.save_path),
+            spec,
+            save_freq=period(self.save_freq) or sys.maxsize,  # never but on Ctrl-C
+            command=vars(self.args),
+            continue_model=bool(self.trained_agent),
+        )
+        experiment = Experiment(self.algo, task, {"env_kwargs": dict(self.env_kwargs)}, seed=self.seed, n_games=self.n_envs)
+        experiment.attach(model)
+        callbacks.append(BudgetEstimate(spec.n_timesteps))
+        run.execute(
+            experiment,
+            resumed=self.zoo_train.record,
+            by_path=isinstance(resume, Path),
+            lock=self.zoo_train.lock,
+            output=RunOutput(command_line=True, verbose=self.verbose, progress_bar=self.show_progress, callbacks=callbacks),
+            announce=_announce_resume,
+        )
+
+    def save_trained_model(self, model: BaseAlgorithm) -> None:
+        """On a package task nothing: the run saved ``<task>.zip`` (:meth:`learn`)."""
+        if not self.zoo_train.package_env:
+            super().save_trained_model(model)
+
+
+def _announce_resume(run: Run) -> None:
+    if run.resume is not None:
+        print(f"Resuming {run.folder} from {run.resume.checkpoint.name}")
+
+
+def one_line(error: BaseException) -> str:
+    """An error as one line: our messages as they are, another library's with its type (first line only)."""
+    text = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
+    first = str(text).strip().splitlines()[0] if str(text).strip() else "(no message)"
+    return first if isinstance(error, ConfigError) else f"{type(error).__name__}: {first}"
+
+
+def remove_created_folders(created: Sequence[Path]) -> None:
+    """Remove the folders a failed command created (listed outermost first): the innermost with what it holds, the
+    others only when they are left empty."""
+    for folder in reversed(created):
+        if folder == created[-1]:
+            shutil.rmtree(folder, ignore_errors=True)
+        elif folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()

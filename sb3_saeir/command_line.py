@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.common.checks import check_device
+from sb3_saeir.common.checks import MAX_TIMESTEPS, check_device
 from sb3_saeir.common.utils import check_seed, unwritable_folder
 from sb3_saeir.config import ALGOS, ConfigError, check_hyperparams, config_path, load_hyperparams, parse_params
 from sb3_saeir.envs import list_tasks
@@ -41,6 +41,14 @@ def count(text: str) -> int:
     if not value.is_integer():
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number")
     return int(value)
+
+
+def budget(text: str) -> int:
+    """argparse type of an agent-step budget (``-n``): a count (:func:`count`) of at most 2**53."""
+    value = count(text)
+    if value > MAX_TIMESTEPS:
+        raise argparse.ArgumentTypeError(f"{text!r} agent-steps is more than 2**53 ({MAX_TIMESTEPS:,}), the largest budget")
+    return value
 
 
 def check_range(option: str, value: int | None, low: int, meaning: str = "") -> None:

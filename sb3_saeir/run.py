@@ -490,6 +490,8 @@ class Run:
         resume = self.resume
         if self.skipped:
             self._keep_skipped_aside()
+        elif resume is None and (self.folder / EVALUATIONS_FILE).is_file():
+            self.log("nothing to resume from (no checkpoint, no final model with a resume state): the run starts over")
         state = None
         if resume is not None:
             model = experiment.model

@@ -25,6 +25,7 @@ from sb3_saeir.command_line import (
     DOUBLE_BUFFERED_FLAGS,
     DRAW_SEED,
     OneLineParser,
+    budget,
     check_arguments,
     count,
     one_line_warnings,
@@ -322,7 +323,7 @@ def make_parser() -> argparse.ArgumentParser:
         help=f"random seed, 0 .. 2**32 - 1 ({DRAW_SEED}: draw one); default 0, at --resume the run's own",
     )
     parser.add_argument("-conf", "--conf-file", default=None, help="zoo-format YAML (default: zoo_configs/<algo>.yml)")
-    parser.add_argument("-n", "--n-timesteps", type=count, default=None, help="override n_timesteps (agent-steps)")
+    parser.add_argument("-n", "--n-timesteps", type=budget, default=None, help="override n_timesteps (agent-steps)")
     parser.add_argument("--n-games", type=count, default=None, help="override n_envs (number of games)")
     parser.add_argument("--eval-freq", type=count, default=25_000, help="evaluate every this many agent-steps (0: never)")
     parser.add_argument("--eval-episodes", type=count, default=20, help="game episodes per evaluation")

@@ -514,3 +514,30 @@ def test_compile_may_change_at_resume_in_params_too(finished_tiny_run, tmp_path,
     command = argv(tmp_path / "logs", "--resume")
     command.insert(command.index("n_epochs:2") + 1, "compile:False")
     assert run(train_main, command) == 0, capsys.readouterr().err
+
+
+def test_a_budget_beyond_2_53_is_refused_before_anything_is_written(tmp_path, capsys):
+    """``-n 1e20`` crashed in ``learn`` with numpy's TypeError after the run's spec.json was written (and, at
+    ``--resume``, recorded as an extension); ``MAPPO.learn(10**20)`` likewise."""
+    assert run(train_main, [*TINY, "-n", "1e20", "-f", str(tmp_path)]) == 2
+    assert "'1e20' agent-steps is more than 2**53" in capsys.readouterr().err
+    assert run(benchmark_main, ["--algos", "mappo", "-n", "1e20", "--out", str(tmp_path / "b")]) == 2
+    assert "more than 2**53" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    model = MAPPO("MAPPOPolicy", make_multiagent_vec_env(TASK, n_games=2), n_steps=10)
+    with pytest.raises(
+        ValueError, match=r"total_timesteps=100000000000000000000 is out of range; it must be >= 1 and at most 2\*\*53"
+    ):
+        model.learn(10**20)
+
+
+def test_a_benchmark_run_with_nothing_to_resume_from_says_it_starts_over(tmp_path, capsys):
+    tiny = ["--algos", "mappo", "--seeds", "1", "--n-games", "2", "--eval-freq", "60", "-params", "n_steps:10", "n_epochs:1"]
+    assert run(benchmark_main, [*tiny, "-n", "60", "--out", str(tmp_path)]) == 0
+    folder = tmp_path / "runs" / "mappo" / f"{TASK}_s1"
+    (folder / f"{TASK}.zip").unlink()  # the finished run's resume point deleted
+    assert run(benchmark_main, [*tiny, "-n", "120", "--out", str(tmp_path)]) == 0
+    assert (
+        "nothing to resume from (no checkpoint, no final model with a resume state): the run starts over"
+        in (folder / "resume.log").read_text()
+    )

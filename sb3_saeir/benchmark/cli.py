@@ -13,7 +13,7 @@ from typing import Any
 from sb3_saeir.benchmark.execution import run_all
 from sb3_saeir.benchmark.reports import plot_system_entropy, report
 from sb3_saeir.benchmark.runs import ensure_spec_file, move_aside, parse_seeds, run_folder, stored_spec_differences
-from sb3_saeir.command_line import OneLineParser, check_folder, count
+from sb3_saeir.command_line import OneLineParser, budget, check_folder, count
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
@@ -67,7 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--algos", nargs="+", default=["saeir_ppo", "mappo"], help=f"methods: {', '.join(sorted(ALGOS))}")
     parser.add_argument("--tasks", nargs="+", default=["cn-sparse-n3"])
     parser.add_argument("--seeds", default="1-3", help="e.g. 1-5 or 1,3,7")
-    parser.add_argument("-n", "--n-timesteps", type=count, default=1_000_000, help="agent-steps per run")
+    parser.add_argument("-n", "--n-timesteps", type=budget, default=1_000_000, help="agent-steps per run")
     parser.add_argument("--n-games", type=count, default=None, help="override the configs' n_envs (games)")
     parser.add_argument("--eval-freq", type=count, default=50_000, help="agent-steps between evaluations")
     parser.add_argument("--eval-episodes", type=count, default=20, help="game episodes per evaluation")

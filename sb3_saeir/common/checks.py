@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import inspect
 import json
+import math
 import os
 import pathlib
 import pickle
@@ -31,6 +32,9 @@ from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
 from sb3_saeir.common.utils import check_bool, unwritable_folder
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
+# The largest agent-step count a budget may have: integers up to 2**53 are exact as floats (SB3's progress and the
+# logger compute with floats).
+MAX_TIMESTEPS = 2**53
 # Valid range of each numeric argument: (test, description). Schedules (callables) are not checked.
 _RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
     "learning_rate": (lambda x: x > 0, "> 0"),
@@ -49,7 +53,7 @@ _RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
     "target_kl": (lambda x: x > 0, "> 0 (or None)"),
     "clip_range_vf": (lambda x: x > 0 or x == VALUE_CLIPPING_OFF, "> 0, or -1 to turn value clipping off (or None)"),
     "stats_window_size": (lambda x: x >= 1, ">= 1"),
-    "total_timesteps": (lambda x: x >= 1, ">= 1"),
+    "total_timesteps": (lambda x: 1 <= x <= MAX_TIMESTEPS, f">= 1 and at most 2**53 ({MAX_TIMESTEPS:,})"),
 }
 MINIBATCH_ARGUMENTS = {"batch_size", "n_minibatches", "n_steps", "data_chunk_length"}
 INTRINSIC_ARGUMENTS = {"intrinsic_reward", "intrinsic_coef", "intrinsic_kwargs"}
@@ -71,7 +75,7 @@ def check_ranges(algo_name: str, **values: Any) -> None:
             continue
         if name in _INTEGER_ARGUMENTS and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
             raise ValueError(f"{algo_name}: {name} must be an integer, got {value!r}.")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(float(value)):
             raise ValueError(f"{algo_name}: {name} must be a finite number, got {value!r}.")
         test, rule = _RANGES[name]
         if not test(float(value)):

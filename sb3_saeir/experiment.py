@@ -408,3 +408,49 @@ def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, lo
     if not with_model:
         raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo} has a {name}.")
     return with_model[-1]
+
+
+def loaded_network(model: BaseAlgorithm, path: str | Path, requested: Any, configured: Any) -> str | None:
+    """``-i``: a loaded model trains the network it was saved with (SB3's ``load`` drops other ``policy_kwargs``
+    without a word). Refuse a ``-params policy_kwargs`` that asks for another network; return the loaded network's
+    ``policy_kwargs`` as a config writes them when the config's describe another network (the run's record then
+    says what trains), else ``None``.
+
+    :param model: the loaded model
+    :param path: where it was loaded from (``-i``)
+    :param requested: the command's ``-params policy_kwargs`` (``None``: not given)
+    :param configured: the config entry's ``policy_kwargs``
+    :raises ~sb3_saeir.config.ConfigError: naming the settings that cannot apply
+    """
+    saved = dict(getattr(model, "policy_kwargs", {}) or {})
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(type(model.policy).__init__).parameters.items()
+        if parameter.default is not inspect.Parameter.empty
+    }
+
+    def differing(kwargs: dict[str, Any], keys: set[str]) -> list[str]:
+        """The keys of ``keys`` whose value (a policy default where not given) differs from the loaded network's."""
+        return [key for key in sorted(keys) if kwargs.get(key, defaults.get(key)) != saved.get(key, defaults.get(key))]
+
+    asked = parse_policy_kwargs(requested) if requested is not None else {}
+    keys = differing(asked, set(asked))
+    if keys:
+        wanted = ", ".join(f"{key}={kwarg_text(asked[key])}" for key in keys)
+        has = ", ".join(f"{key}={kwarg_text(saved.get(key, defaults.get(key)))}" for key in keys)
+        raise ConfigError(
+            f"-i {path}: -params policy_kwargs {wanted} cannot apply to the loaded model, whose network has {has}: a "
+            "loaded model trains the network it was saved with. Drop the policy_kwargs override, or start a new run "
+            "without -i."
+        )
+    in_config = parse_policy_kwargs(configured)
+    if differing(in_config, set(in_config) | set(saved)):
+        return "dict(" + ", ".join(f"{key}={kwarg_text(value)}" for key, value in sorted(saved.items())) + ")"
+    return None
+
+
+def kwarg_text(value: Any) -> str:
+    """A policy keyword's value as a config writes it (``nn.Tanh`` for a torch module class)."""
+    if isinstance(value, type) and value.__module__.startswith("torch.nn"):
+        return f"nn.{value.__name__}"
+    return repr(value)

@@ -10,7 +10,6 @@ its "Stopping and resuming a run". ``--optimize`` tunes hyperparameters with Opt
 from __future__ import annotations
 
 import argparse
-import inspect
 import sys
 import time
 from dataclasses import replace
@@ -36,9 +35,16 @@ from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.utils import set_num_threads
-from sb3_saeir.config import ALGOS, ConfigError, parse_params, parse_policy_kwargs
+from sb3_saeir.config import ALGOS, ConfigError, parse_params
 from sb3_saeir.envs import list_tasks
-from sb3_saeir.experiment import Experiment, claimed_run_folder, config_budget, find_run_folder, model_method_mismatch
+from sb3_saeir.experiment import (
+    Experiment,
+    claimed_run_folder,
+    config_budget,
+    find_run_folder,
+    loaded_network,
+    model_method_mismatch,
+)
 from sb3_saeir.run import Run, RunOutput, RunStoppedError
 from sb3_saeir.run_record import RunSpec, config_record, stored_record
 
@@ -252,60 +258,13 @@ def build_model(experiment: Experiment, env: VecEnv, args: argparse.Namespace) -
     if tensorboard_log is None:
         tensorboard_log = experiment.hyperparams.get("tensorboard_log")
     if args.trained_agent and args.resume is None:
-        experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
-        record_loaded_network(experiment, args.trained_agent, parse_params(args.params))
+        model = experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
+        requested = parse_params(args.params).get("policy_kwargs")
+        loaded = loaded_network(model, args.trained_agent, requested, experiment.hyperparams.get("policy_kwargs"))
+        if loaded is not None:
+            experiment.resolved_hyperparams["policy_kwargs"] = loaded
     else:
         experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
-
-
-def record_loaded_network(experiment: Experiment, path: str, params: dict[str, Any]) -> None:
-    """``-i``: the loaded model trains the network it was saved with. Refuse a ``-params policy_kwargs`` that asks for
-    another network (SB3's ``load`` would drop it without a word); when the config's ``policy_kwargs`` describe another
-    network than the loaded one, the run's record (``spec.json``) gets the loaded network's.
-
-    :param experiment: the experiment, its model loaded
-    :param path: the loaded model (``-i``)
-    :param params: the command's ``-params``
-    :raises ~sb3_saeir.config.ConfigError: naming the settings that cannot apply
-    """
-    assert experiment.model is not None
-    saved = dict(getattr(experiment.model, "policy_kwargs", {}) or {})
-    defaults = {
-        name: parameter.default
-        for name, parameter in inspect.signature(type(experiment.model.policy).__init__).parameters.items()
-        if parameter.default is not inspect.Parameter.empty
-    }
-
-    def differing(kwargs: dict[str, Any], keys: set[str]) -> list[str]:
-        """The keys of ``keys`` whose value (a policy default where not given) differs between ``kwargs`` and the
-        loaded network's."""
-        return [key for key in sorted(keys) if kwargs.get(key, defaults.get(key)) != saved.get(key, defaults.get(key))]
-
-    requested = parse_policy_kwargs(params["policy_kwargs"]) if "policy_kwargs" in params else {}
-    keys = differing(requested, set(requested))
-    if keys:
-        asked = ", ".join(f"{key}={show_kwarg(requested[key])}" for key in keys)
-        has = ", ".join(f"{key}={show_kwarg(saved.get(key, defaults.get(key)))}" for key in keys)
-        raise ConfigError(
-            f"-i {path}: -params policy_kwargs {asked} cannot apply to the loaded model, whose network has {has}: a "
-            "loaded model trains the network it was saved with. Drop the policy_kwargs override, or start a new run "
-            "without -i."
-        )
-    configured = parse_policy_kwargs(experiment.hyperparams.get("policy_kwargs"))
-    if differing(configured, set(configured) | set(saved)):
-        experiment.resolved_hyperparams["policy_kwargs"] = policy_kwargs_text(saved)
-
-
-def show_kwarg(value: Any) -> str:
-    """A policy keyword's value as a config writes it (``nn.Tanh`` for a torch module class)."""
-    if isinstance(value, type) and value.__module__.startswith("torch.nn"):
-        return f"nn.{value.__name__}"
-    return repr(value)
-
-
-def policy_kwargs_text(kwargs: dict[str, Any]) -> str:
-    """``policy_kwargs`` as a config writes them: ``"dict(activation_fn=nn.Tanh, hidden_size=64)"``."""
-    return "dict(" + ", ".join(f"{key}={show_kwarg(value)}" for key, value in sorted(kwargs.items())) + ")"
 
 
 def make_parser() -> argparse.ArgumentParser:

@@ -199,3 +199,27 @@ def test_launcher_arguments():
     assert prepare_train_args(other) == other  # other envs: untouched
     assert prepare_enjoy_args(["--env", TASK, "-f", "x"])[-2:] == ["--n-envs", "2"]
     assert prepare_enjoy_args(["--env", TASK, "--n-envs", "4"])[-2:] == ["--n-envs", "4"]
+
+
+def test_zoo_i_records_the_loaded_network_and_refuses_another(tmp_path):
+    """``zoo train -i FF.zip``: the record says feed-forward (rl-zoo3 drops the config's policy_kwargs when it loads);
+    a ``-params policy_kwargs`` the loaded model cannot take is refused in one line, nothing left behind."""
+    import json
+
+    common = ["train", "--algo", "mappo", "--env", TASK, "--num-threads", "1", "--device", "cpu", "--seed", "0", "-n", "60",
+              "--eval-freq", "0", "-f", str(tmp_path)]  # fmt: skip
+    feed_forward = "policy_kwargs:dict(activation_fn=nn.Tanh, hidden_size=64, critic_input='joint', recurrent=False)"
+    run_launcher(*common, "-params", "n_envs:2", "n_steps:10", feed_forward)
+    model = tmp_path / "mappo" / f"{TASK}_1" / f"{TASK}.zip"
+    run_launcher(*common, "-params", "n_envs:2", "n_steps:10", "-i", str(model))
+    record = json.loads((tmp_path / "mappo" / f"{TASK}_2" / "spec.json").read_text())
+    assert "recurrent=False" in record["config"]["policy_kwargs"]
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
+    refused = subprocess.run(
+        [sys.executable, "-m", "sb3_saeir.zoo", *common, "-params", "n_envs:2", "n_steps:10",
+         "policy_kwargs:dict(recurrent=True)", "-i", str(model)],
+        cwd=REPO, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert refused.returncode == 2
+    assert "-params policy_kwargs recurrent=True cannot apply to the loaded model" in refused.stderr
+    assert sorted(path.name for path in (tmp_path / "mappo").iterdir()) == [f"{TASK}_1", f"{TASK}_2"]

@@ -21,7 +21,7 @@ from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.run_lock import RunFolderLock
 from sb3_saeir.config import ConfigError, load_yaml
-from sb3_saeir.experiment import Experiment
+from sb3_saeir.experiment import Experiment, loaded_network
 from sb3_saeir.run import Run, RunOutput
 from sb3_saeir.run_record import RunSpec, config_record
 
@@ -112,6 +112,10 @@ class RunExperimentManager(ExperimentManager):
             self.zoo_train.lock = RunFolderLock(self.save_path).acquire()
         try:
             result = super().setup_experiment()
+            loaded = None
+            if result is not None and self.trained_agent and self.zoo_train.folder is None:  # -i: what trains
+                requested = (self.custom_hyperparams or {}).get("policy_kwargs")
+                loaded = loaded_network(result[0], self.trained_agent, requested, result[1].get("policy_kwargs"))
         except Exception as error:
             if new_run and self.zoo_train.lock is not None:
                 self.zoo_train.lock.release()
@@ -119,6 +123,8 @@ class RunExperimentManager(ExperimentManager):
             remove_created_folders(created)
             raise ConfigError(f"cannot set up {self.algo} on {self.env_name}: {one_line(error)}") from error
         self.saeir_config = dict(result[1]) if result is not None else {}
+        if loaded is not None:  # the run's record says which network trains
+            self.saeir_config["policy_kwargs"] = loaded
         return result
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:

@@ -541,3 +541,13 @@ def test_a_benchmark_run_with_nothing_to_resume_from_says_it_starts_over(tmp_pat
         "nothing to resume from (no checkpoint, no final model with a resume state): the run starts over"
         in (folder / "resume.log").read_text()
     )
+
+
+def test_zoo_params_value_that_is_not_python_names_the_fix(tmp_path, capsys):
+    """rl-zoo3 evaluates each ``-params`` value: ``compile:bogus`` was its ``NameError`` traceback."""
+    argv = ["train", "--algo", "mappo", "--env", TASK, "-n", "60", "-f", str(tmp_path), "-params", "compile:bogus"]
+    assert run(zoo_main, argv) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "-params compile:bogus: rl-zoo3 reads each value as a Python expression and 'bogus' is not one" in line
+    assert "NameError" in line and "-params \"compile:'bogus'\"" in line
+    assert list(tmp_path.iterdir()) == []

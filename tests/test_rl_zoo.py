@@ -223,3 +223,21 @@ def test_zoo_i_records_the_loaded_network_and_refuses_another(tmp_path):
     assert refused.returncode == 2
     assert "-params policy_kwargs recurrent=True cannot apply to the loaded model" in refused.stderr
     assert sorted(path.name for path in (tmp_path / "mappo").iterdir()) == [f"{TASK}_1", f"{TASK}_2"]
+
+
+def test_zoo_train_longer_ends_as_the_longer_run(tmp_path):
+    """``zoo train --resume`` with a larger ``-n`` trains a finished run longer, as an uninterrupted run of that budget."""
+    import json
+
+    from tests.run_folders import assert_same_parameters
+
+    common = ["train", "--algo", "mappo", "--env", TASK, "--conf-file", "zoo_configs/mappo.yml", "--num-threads", "1",
+              "--device", "cpu", "--seed", "0", "-params", "n_envs:2", "n_steps:10", "--eval-freq", "60",
+              "--eval-episodes", "2"]  # fmt: skip
+    run_launcher(*common, "-n", "300", "-f", str(tmp_path / "extended"))
+    run_launcher(*common, "-n", "600", "-f", str(tmp_path / "extended"), "--resume")
+    run_launcher(*common, "-n", "600", "-f", str(tmp_path / "uninterrupted"))
+    extended, uninterrupted = (tmp_path / name / "mappo" / f"{TASK}_1" for name in ("extended", "uninterrupted"))
+    assert_same_parameters(extended / f"{TASK}.zip", uninterrupted / f"{TASK}.zip")
+    (extension,) = json.loads((extended / "spec.json").read_text())["extensions"]
+    assert (extension["from"], extension["to"]) == (300, 600)

@@ -224,3 +224,21 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
 
 # Values of --double-buffered -> the algorithms' double_buffered.
 DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}
+
+
+def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
+    """The seed of a resumed run: its record's; the command's ``--seed`` must be that seed, or left out (``None``), or
+    -1 (``DRAW_SEED``, rl-zoo3's default).
+
+    :param seed: the command's ``--seed`` (``None``: not given)
+    :param stored: the run's settings record
+    :param folder: the run's folder
+    :raises ~sb3_saeir.config.ConfigError: when the command gives another seed
+    """
+    stored_seed = int(stored["seed"])
+    if seed is not None and seed not in (stored_seed, DRAW_SEED):
+        raise ConfigError(
+            f"--resume: {folder} was made with --seed {stored_seed}, not --seed {seed}: a run goes on with its own seed. "
+            f"Give --seed {stored_seed} (or no --seed), or start a new run without --resume."
+        )
+    return stored_seed

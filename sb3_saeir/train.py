@@ -30,6 +30,7 @@ from sb3_saeir.command_line import (
     one_line_warnings,
     resolve_hyperparams,
     resume_target,
+    resumed_seed,
 )
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
@@ -162,24 +163,6 @@ def train(args: argparse.Namespace) -> Path:
     with RunFolderLock(folder) as lock:  # before anything is read for the run or written
         stored = stored_record(folder, args.algo, args.task, legacy_train_record)
         return _execute(args, hyperparams, folder, resumed_seed(args.seed, stored, folder), stored, lock)
-
-
-def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
-    """The seed of a resumed run: its record's; the command's ``--seed`` must be that seed, or left out (``None``), or
-    -1.
-
-    :param seed: the command's ``--seed`` (``None``: not given)
-    :param stored: the run's settings record
-    :param folder: the run's folder
-    :raises ~sb3_saeir.config.ConfigError: when the command gives another seed
-    """
-    stored_seed = int(stored["seed"])
-    if seed is not None and seed not in (stored_seed, DRAW_SEED):
-        raise ConfigError(
-            f"--resume: {folder} was made with --seed {stored_seed}, not --seed {seed}: a run goes on with its own seed. "
-            f"Give --seed {stored_seed} (or no --seed), or start a new run without --resume."
-        )
-    return stored_seed
 
 
 def _execute(

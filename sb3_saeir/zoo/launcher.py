@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_saeir.command_line import check_folder, check_seed_option, one_line_warnings, resume_target
+from sb3_saeir.command_line import check_folder, check_seed_option, one_line_warnings, resume_target, resumed_seed
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import SPEC_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
@@ -329,12 +329,7 @@ def claim_resumed_run(argv: list[str], resume: int | Path, command: ZooTrain) ->
         raise ConfigError(f"--resume: {error}") from None
     if record is None:
         raise ConfigError(f"--resume: {folder} has no {SPEC_FILE}: it is not a run of this command.")
-    seed = int(record["seed"])
-    if options.seed not in (-1, seed):
-        raise ConfigError(
-            f"--resume: {folder} was made with --seed {seed}, not --seed {options.seed}: a run goes on with its own "
-            f"seed. Give --seed {seed} (or no --seed), or start a new run without --resume."
-        )
+    seed = resumed_seed(options.seed, record, folder)
     seed_free = _mini_parser([(["--seed"], {"default": None})]).parse_known_args(argv)[1]
     return folder, record, [*seed_free, "--seed", str(seed)]
 

@@ -66,7 +66,10 @@ def rollout_windows(experiment: Experiment, n_rollouts: int) -> list[dict[str, A
     """Collect ``n_rollouts`` rollouts with the model's policy, as ``learn`` does, without any update.
 
     :return: per rollout the stored normalised values ``(T, E, K)``, episode starts ``(T, E)``, bootstrap values
-        ``(E, K)``, last dones ``(E,)`` and the scale names
+        ``(E, K)``, last dones ``(E,)`` and the scale names; for the critic diagnostics also the observations
+        ``(T, E, *obs_shape)``, the critics' states before the rollout's first step ``(K, G, N, H)``, the values in
+        return space and the GAE returns ``(T, E, K)``, and the advantages standardised per scale as the update uses
+        them ``(T, E, K)``
     """
     model = experiment.model
     assert model is not None and model.env is not None
@@ -85,6 +88,11 @@ def rollout_windows(experiment: Experiment, n_rollouts: int) -> list[dict[str, A
                 "last_values": buffer.last_values.copy(),
                 "last_dones": buffer.last_dones.copy(),
                 "scales": tuple(model.policy.scales),  # type: ignore[attr-defined]
+                "observations": buffer.observations.copy(),
+                "critic_states": buffer.critic_states[0].copy(),
+                "denormalized_values": buffer.denormalized_values.copy(),
+                "returns": buffer.returns.copy(),
+                "advantages": buffer.standardized_advantages(),
             }
         )
     callback.on_training_end()
@@ -162,6 +170,22 @@ def markdown(stats: dict[str, dict[str, dict[str, Any]]], title: str, positions:
             )
             lines.append(f"| {t} | {cells} |")
     return "\n".join(lines) + "\n"
+
+
+def model_label(model_path: Path) -> str:
+    """``<algo>/<run>/<file stem>`` of a benchmark model path (``runs/<algo>/<task>_s<seed>/<file>.zip``)."""
+    parts = model_path.parts
+    return "/".join((*parts[-3:-1], model_path.stem)) if len(parts) >= 3 else model_path.stem
+
+
+def check_run_models(parser: argparse.ArgumentParser, models: list[Path]) -> None:
+    """Refuse (``parser.error``) model paths that are not files or have no ``spec.json`` of a benchmark run beside them."""
+    missing = [str(path) for path in models if not path.is_file()]
+    if missing:
+        parser.error(f"no model file at {', '.join(missing)}")
+    no_spec = [str(path) for path in models if not (path.parent / "spec.json").is_file()]
+    if no_spec:
+        parser.error(f"no spec.json next to {', '.join(no_spec)} (give models of benchmark runs)")
 
 
 def _fmt(value: float) -> str:

@@ -2,6 +2,7 @@
 
 import os
 import signal
+import sys
 import threading
 import time
 
@@ -44,8 +45,12 @@ def load_benchmark_script():
     import importlib.util
     from pathlib import Path
 
+    benchmarks = Path(__file__).parent.parent / "benchmarks"
+    if str(benchmarks) not in sys.path:  # the scripts import each other, as they do when run from the command line
+        sys.path.append(str(benchmarks))
+
     def load(name):
-        spec = importlib.util.spec_from_file_location(name, Path(__file__).parent.parent / "benchmarks" / f"{name}.py")
+        spec = importlib.util.spec_from_file_location(name, benchmarks / f"{name}.py")
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         return module

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Issue 51 part 1 (navigation, calibrated task readings at the paper's budget): seed 1, packaged configs (128 games),
 # 20M env steps = 60M agent-steps, evaluations every 1M env steps (3M agent-steps) on 200 greedy episodes, from the
-# worktree at 6cb8124. One-thread jobs. Re-running resumes from the newest checkpoint.
+# worktree at 6cb8124. One-thread jobs. Re-running resumes from the newest checkpoint. SAEIR_PPO runs with the compiled
+# networks (compile:True, measured 1.26x faster update on this task, same maths within 1e-4; no setting changes).
 # usage: queue.sh mappo-no-penalty | mappo-reach | saeir-no-penalty | saeir-reach
 set -euo pipefail
 cd "$HOME/saeir-nav-cal"
@@ -14,9 +15,9 @@ REACH="env_kwargs:{N: 3, reward: reach}"
 echo "$(date -u +%FT%TZ) $1 start (commit $(git rev-parse --short HEAD))"
 case "$1" in
   mappo-no-penalty) $PY -m sb3_saeir.benchmark --algos mappo "${COMMON[@]}" -params "$NO_PENALTY" --out "$OUT/no-penalty" ;;
-  saeir-no-penalty) $PY -m sb3_saeir.benchmark --algos saeir_ppo "${COMMON[@]}" -params "$NO_PENALTY" --out "$OUT/no-penalty" ;;
+  saeir-no-penalty) $PY -m sb3_saeir.benchmark --algos saeir_ppo "${COMMON[@]}" -params "$NO_PENALTY" compile:True --out "$OUT/no-penalty" ;;
   mappo-reach) $PY -m sb3_saeir.benchmark --algos mappo "${COMMON[@]}" -params "$REACH" --out "$OUT/reach" ;;
-  saeir-reach) $PY -m sb3_saeir.benchmark --algos saeir_ppo "${COMMON[@]}" -params "$REACH" --out "$OUT/reach" ;;
+  saeir-reach) $PY -m sb3_saeir.benchmark --algos saeir_ppo "${COMMON[@]}" -params "$REACH" compile:True --out "$OUT/reach" ;;
   *) echo "unknown job $1"; exit 2 ;;
 esac
 echo "$(date -u +%FT%TZ) $1 done"

@@ -1,0 +1,161 @@
+"""How far a trained critic's values stay from firing the SAEIR bonus: the rise of each step's value above the
+log-mean-exp of the window's earlier values, against the rise that would fire.
+
+    python benchmarks/bonus_rise.py --model <out>/runs/mappo/cn-sparse-n3_s1/cn-sparse-n3.zip [...]
+
+The released code's bonus (``docs/method.md``, "The intrinsic reward"; ``saeir_bonus(..., variant="code")``) rewards
+step ``t`` of a window when appending its value ``v_t`` lowers the entropy ``H_t`` of the value-softmax over the
+window's earlier steps. With ``m_t`` the log-mean-exp of ``v_0 .. v_{t-1}``, the step's **rise** is ``d_t = v_t - m_t``;
+its share of the softmax is ``q_t = sigmoid(d_t - log t)``, and the step fires exactly when ``h(q_t) / q_t < H_t``
+(``h`` the binary entropy), i.e. when ``d_t`` exceeds the **threshold** ``d*_t = logit(q*_t) + log t`` with
+``h(q*) / q* = H_t``: about +1 when the earlier values are flat. Steps 0 and 1 never fire (``H_0 = H_1 = 0``) and are
+left out of every figure.
+
+For each model (a benchmark run's model with its ``spec.json``: any method, the bonus is read on its critic's own
+values, every scale of a hypergraph critic), the script collects ``--rollouts`` rollouts exactly as training does
+(``benchmarks/bonus_readings.py``, nothing updated) and prints per scale: quantiles of the rise, the share of steps
+with a rise above +1, the median threshold and the median margin ``d - d*`` (the step fires when it is above 0), the
+fire rate (equal to the code bonus's), and the fire rate under three changes of setting that leave the authors'
+defaults as they are: the values in return space (what ``normalize_values=False`` would feed the bonus: the
+normalised values times the scale's ``ValueNorm`` standard deviation ``sigma``, printed), the values times 4 (a
+softmax temperature of 1/4; no such setting exists), and the window restarted at every episode start.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch as th
+from bonus_readings import check_run_models, load_experiment, model_label, rollout_windows
+
+from sb3_saeir.intrinsic import saeir_bonus
+
+QUANTILES = (0.5, 0.9, 0.99)
+TEMPERATURE_FACTOR = 4.0
+
+
+def window_entropies(values: np.ndarray) -> np.ndarray:
+    """``H_t`` of every step of windows ``(T, S)``: the entropy of the softmax over ``v_0 .. v_{t-1}`` (``H_0 = 0``),
+    computed directly over each prefix, ``(T, S)``."""
+    n_steps = values.shape[0]
+    entropies = np.zeros(values.shape, dtype=np.float64)
+    for t in range(1, n_steps):
+        prefix = values[:t].astype(np.float64)  # (t, S)
+        logits = prefix - prefix.max(axis=0)
+        log_p = logits - np.log(np.exp(logits).sum(axis=0))
+        entropies[t] = -(np.exp(log_p) * log_p).sum(axis=0)
+    return entropies
+
+
+def rises(values: np.ndarray) -> np.ndarray:
+    """``d_t = v_t - logmeanexp(v_0 .. v_{t-1})`` of windows ``(T, S)``, ``(T, S)`` (``nan`` at step 0)."""
+    values = values.astype(np.float64)
+    out = np.full(values.shape, np.nan)
+    for t in range(1, values.shape[0]):
+        prefix = values[:t]
+        top = prefix.max(axis=0)
+        out[t] = values[t] - (top + np.log(np.exp(prefix - top).mean(axis=0)))
+    return out
+
+
+def thresholds(entropies: np.ndarray) -> np.ndarray:
+    """The rise ``d*_t`` above which step ``t`` fires, from the entropies ``H_t`` ``(T, S)`` of the earlier steps:
+    ``logit(q*) + log t`` with ``h(q*) / q* = H_t``, found by bisection on ``x = logit(q)`` (``h(q) / q`` falls from
+    +inf to 0 as ``x`` grows: ``softplus(-x) + exp(-x) softplus(x)``); ``inf`` where ``H_t = 0``."""
+    low = np.full(entropies.shape, -60.0)
+    high = np.full(entropies.shape, 60.0)
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        ratio = np.logaddexp(0.0, -middle) + np.exp(-middle) * np.logaddexp(0.0, middle)  # h(q) / q at q = sigmoid(x)
+        above = ratio > entropies  # too little share to fire: the root lies higher
+        low = np.where(above, middle, low)
+        high = np.where(above, high, middle)
+    steps = np.arange(entropies.shape[0], dtype=np.float64).reshape(-1, *([1] * (entropies.ndim - 1)))
+    with np.errstate(divide="ignore"):
+        log_steps = np.log(steps)
+    return np.where(entropies > 0, 0.5 * (low + high) + log_steps, np.inf)
+
+
+def scale_readings(values: np.ndarray, values_return_space: np.ndarray, episode_starts: np.ndarray) -> dict[str, Any]:
+    """Every figure of one scale over windows ``(T, S)`` (see the module docstring)."""
+    rise = rises(values)[2:]  # steps 0 and 1 never fire
+    threshold = thresholds(window_entropies(values))[2:]
+    fired = saeir_bonus(values)[2:] > 0
+    finite = np.isfinite(threshold)
+    return {
+        "n": rise.size,
+        "quantiles": np.quantile(rise, QUANTILES),
+        "max": float(rise.max()),
+        "above_one": float((rise > 1.0).mean()),
+        "threshold_median": float(np.median(threshold[finite])) if finite.any() else float("inf"),
+        "margin_median": float(np.median(rise - threshold)),
+        "fire_rate": float(fired.mean()),
+        "fire_rate_by_rise": float((rise > threshold).mean()),
+        "fire_rate_return_space": float((saeir_bonus(values_return_space)[2:] > 0).mean()),
+        "fire_rate_temperature": float((saeir_bonus(TEMPERATURE_FACTOR * values)[2:] > 0).mean()),
+        "fire_rate_episode_windows": float((saeir_bonus(values, episode_starts=episode_starts)[2:] > 0).mean()),
+    }
+
+
+def model_readings(model_path: Path, n_rollouts: int, n_games: int | None, seed: int) -> dict[str, dict[str, Any]]:
+    """``{scale: readings}`` of one model, pooled over its rollouts' windows (games x agents)."""
+    experiment = load_experiment(model_path, None, None, n_games, seed)
+    windows = rollout_windows(experiment, n_rollouts)
+    experiment.close()
+    readings = {}
+    for k, scale in enumerate(windows[0]["scales"]):
+        values = np.concatenate([w["values"][..., k] for w in windows], axis=1)  # (T, E * rollouts)
+        returns_space = np.concatenate([w["denormalized_values"][..., k] for w in windows], axis=1)
+        starts = np.concatenate([w["episode_starts"] for w in windows], axis=1)
+        readings[scale] = scale_readings(values, returns_space, starts)
+        spread = values.std()
+        readings[scale]["sigma"] = float(returns_space.std() / spread) if spread > 0 else float("nan")
+    return readings
+
+
+def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
+    quantile_names = " | ".join(f"rise p{round(100 * q)}" for q in QUANTILES)
+    lines = [
+        f"| model | scale | steps | {quantile_names} | rise max | rise > 1 | threshold (median) | margin (median) "
+        f"| fire rate | return space: sigma, fire rate | values x{TEMPERATURE_FACTOR:g}: fire rate "
+        "| episode windows: fire rate |",
+        "|---" * 14 + "|",
+    ]
+    for name, scales in results.items():
+        for scale, row in scales.items():
+            quantiles = " | ".join(f"{value:+.3f}" for value in row["quantiles"])
+            lines.append(
+                f"| {name} | {scale} | {row['n']} | {quantiles} | {row['max']:+.3f} | {row['above_one']:.4f} "
+                f"| {row['threshold_median']:+.3f} | {row['margin_median']:+.3f} | {row['fire_rate']:.4f} "
+                f"| {row['sigma']:.2f}, {row['fire_rate_return_space']:.4f} | {row['fire_rate_temperature']:.4f} "
+                f"| {row['fire_rate_episode_windows']:.4f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--model", nargs="+", type=Path, required=True, help="model zip(s), each with its spec.json")
+    parser.add_argument("--rollouts", type=int, default=1, help="rollouts per model")
+    parser.add_argument("--n-games", type=int, default=None, help="games per rollout (default: the run's)")
+    parser.add_argument("--seed", type=int, default=20_000, help="seed of the rollout games")
+    parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
+    args = parser.parse_args(argv)
+    if args.rollouts < 1:
+        parser.error(f"--rollouts must be at least 1, got {args.rollouts}")
+    check_run_models(parser, args.model)
+    th.set_num_threads(1)
+    results = {model_label(path): model_readings(path, args.rollouts, args.n_games, args.seed) for path in args.model}
+    text = markdown(results)
+    sys.stdout.write(text)
+    if args.out is not None:
+        args.out.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,90 @@
+"""benchmarks/bonus_rise.py: the rise of a value above the window's log-mean-exp and the rise that fires the code
+bonus, against a brute-force scan of ``saeir_bonus`` and worked examples; the script on a benchmark model."""
+
+import numpy as np
+import pytest
+
+from sb3_saeir.benchmark import main as benchmark_main
+from sb3_saeir.intrinsic import saeir_bonus
+
+
+@pytest.fixture(scope="module")
+def bonus_rise(load_benchmark_script):
+    return load_benchmark_script("bonus_rise")
+
+
+def test_rise_worked_example(bonus_rise):
+    values = np.array([[0.0], [0.0], [2.0], [np.log(3.0)]])
+    rise = bonus_rise.rises(values)[:, 0]
+    assert np.isnan(rise[0])
+    assert rise[1] == pytest.approx(0.0)
+    assert rise[2] == pytest.approx(2.0)  # log-mean-exp of (0, 0) is 0
+    assert rise[3] == pytest.approx(np.log(3.0) - np.log((2.0 + np.exp(2.0)) / 3.0))
+    entropies = bonus_rise.window_entropies(values)[:, 0]
+    assert entropies[:2] == pytest.approx([0.0, 0.0])
+    assert entropies[2] == pytest.approx(np.log(2.0))
+    p = np.array([1.0, 1.0, np.exp(2.0)]) / (2.0 + np.exp(2.0))
+    assert entropies[3] == pytest.approx(-(p * np.log(p)).sum())
+
+
+@pytest.mark.parametrize("earlier", [[0.0, 0.0], [0.3, -0.5, 1.2], [0.0] * 20, [1.0, -2.0, 0.5, 0.0, 3.0, -1.0]])
+def test_threshold_is_the_smallest_rise_that_fires(bonus_rise, earlier):
+    earlier = np.array(earlier)
+    t = len(earlier)
+    mean = np.log(np.mean(np.exp(earlier)))
+    threshold = bonus_rise.thresholds(bonus_rise.window_entropies(np.append(earlier, 0.0)[:, None]))[t, 0]
+    # brute force: append v_t = mean + d on a fine grid of d and ask the package's bonus whether step t fires
+    grid = np.linspace(-1.0, 6.0, 7001)
+    fires = np.array([saeir_bonus(np.append(earlier, mean + d))[t] > 0 for d in grid])
+    assert fires.any() and not fires.all()
+    first = grid[np.argmax(fires)]
+    assert not fires[grid < first].any() and fires[grid >= first].all()  # one crossing
+    assert threshold == pytest.approx(first, abs=2e-3)
+
+
+def test_flat_earlier_values_need_a_rise_of_about_one(bonus_rise):
+    thresholds = bonus_rise.thresholds(bonus_rise.window_entropies(np.zeros((400, 1))))[:, 0]
+    assert np.isinf(thresholds[:2]).all()  # H_0 = H_1 = 0: steps 0 and 1 never fire
+    assert thresholds[4] == pytest.approx(np.log(4.0), abs=1e-9)  # h(1/2)/(1/2) = 2 log 2 = H_4: q* = 1/2, d* = log 4
+    assert np.all(np.diff(thresholds[2:]) < 0) and 1.0 < thresholds[-1] < 1.01
+
+
+def test_fire_rate_equals_the_code_bonus(bonus_rise):
+    rng = np.random.default_rng(4)
+    for spread in (0.2, 1.0, 5.0):
+        values = spread * rng.normal(size=(25, 300))
+        readings = bonus_rise.scale_readings(values, 3.0 * values, np.zeros((25, 300)))
+        expected = np.count_nonzero(saeir_bonus(values)[2:]) / values[2:].size
+        assert readings["fire_rate"] == pytest.approx(expected)
+        assert readings["fire_rate_by_rise"] == pytest.approx(expected)
+        assert readings["fire_rate_return_space"] == pytest.approx(np.mean(saeir_bonus(3.0 * values)[2:] > 0))
+        assert readings["above_one"] == pytest.approx(np.mean(bonus_rise.rises(values)[2:] > 1.0))
+    # step 6 rises 1.57 above the whole window's earlier values (not enough: only step 2 fires) but 3 above its own
+    # episode's (steps 4-5), where it fires; of steps 2-7, one fires in the rollout's window and two in episode windows
+    values = np.tile(np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 3.0, 0.0])[:, None], (1, 2))
+    starts = np.zeros((8, 2))
+    starts[4] = 1
+    readings = bonus_rise.scale_readings(values, values, starts)
+    assert readings["fire_rate"] == pytest.approx(1 / 6) and readings["fire_rate_episode_windows"] == pytest.approx(2 / 6)
+
+
+def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):
+    argv = ["--algos", "mshg_only", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "300", "--n-games", "2"]
+    argv += ["--eval-freq", "300", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(tmp_path)]
+    assert benchmark_main(argv) == 0
+    models = [str(tmp_path / "runs" / algo / "cn-sparse-n3_s1" / "cn-sparse-n3.zip") for algo in ("mshg_only", "mappo")]
+    out = tmp_path / "rise.md"
+    capsys.readouterr()
+    assert bonus_rise.main(["--model", *models, "--n-games", "2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text == out.read_text()
+    rows = [line for line in text.splitlines() if line.startswith("| mshg_only/") or line.startswith("| mappo/")]
+    assert [row.split(" | ")[1] for row in rows] == ["team", "group", "individual", "critic"]
+    assert all(row.split(" | ")[2] == str(23 * 6) for row in rows)  # steps 2-24 of 2 games x 3 agents
+
+
+def test_models_without_spec_are_refused(bonus_rise, tmp_path, capsys):
+    (tmp_path / "model.zip").write_bytes(b"")
+    with pytest.raises(SystemExit):
+        bonus_rise.main(["--model", str(tmp_path / "model.zip")])
+    assert "no spec.json next to" in capsys.readouterr().err

@@ -18,7 +18,10 @@ reached it, the last evaluation's env steps, and from the run folder's ``segment
 beside the ``runs.csv``) the agent-steps per second and the wall time over all segments (agent-steps trained by the
 segments, a resume's repeated steps included, over their summed wall time, which includes the evaluations); then the
 random policy (``--random-episodes`` episodes of uniform random actions on ``--random-games`` games with the task's
-defaults, as ``benchmarks/random_baseline.py``; 0 skips it) and the references.
+defaults, as ``benchmarks/random_baseline.py``; 0 skips it) and the references. With ``--plateau TOL`` each run's
+row also says where its main metric plateaus: the env steps of the first evaluation from which every later one lies
+within ``TOL`` (display units: percentage points for rates) of the run's level, the mean of its last
+3 evaluations.
 """
 
 from __future__ import annotations
@@ -181,6 +184,24 @@ def final_and_best(curve: Curve) -> tuple[float, float, float]:
     return float(values[-1]), float(values[best]), float(steps[best])
 
 
+def plateau_start(curve: Curve, tolerance: float, tail: int = 3) -> tuple[float, float]:
+    """Where a curve plateaus: ``(env steps of the first evaluation from which every later value lies within
+    ``tolerance`` of the level, the level)``, the level being the mean of the last ``tail`` values (all of them when
+    there are fewer). The last evaluation always qualifies when it is within ``tolerance`` of the level.
+
+    :param curve: env steps and values of one run, sorted by env steps
+    :param tolerance: the largest distance from the level, in the values' unit
+    :param tail: evaluations averaged for the level
+    """
+    steps, values = curve
+    level = float(np.mean(values[-tail:]))
+    inside = np.abs(values - level) <= tolerance  # (n_evaluations,)
+    start = len(values)
+    while start > 0 and inside[start - 1]:
+        start -= 1
+    return (float(steps[start]) if start < len(values) else math.nan), level
+
+
 def wall_time(folder: Path) -> tuple[float, float] | None:
     """``(agent-steps, wall seconds)`` summed over a run's ``segments.json`` segments (``None``: no such file).
 
@@ -224,6 +245,7 @@ def task_table(
     floor: dict[str, Any] | None,
     references: list[Reference],
     reference_label: str,
+    plateau: float | None = None,
 ) -> list[str]:
     """The Markdown of one task: one row per (method, seed), the random policy's row and the references' rows.
 
@@ -234,9 +256,13 @@ def task_table(
     :param floor: the random policy's summary on the task (``None``: not played)
     :param references: published values of the task's main metric
     :param reference_label: what the references are, after the method's name (``paper 20M``)
+    :param plateau: the tolerance of :func:`plateau_start` on the main metric (``None``: no plateau column)
     """
     titles = [metric_display(metric)[0] for metric in metrics]
+    main = main_metric(task)
     header = [f"{title} {part}" for title in titles for part in ("final", "best (first at)")]
+    if plateau is not None:
+        header.append(f"{metric_display(main)[0]} plateau from (level, within {plateau:g})")
     header += ["last evaluation", "agent-steps/s", "wall (h)"]
     lines = [f"## {task}", "", f"| run | {' | '.join(header)} |", "|---" * (len(header) + 1) + "|"]
     evaluations, episodes = {}, set()
@@ -249,6 +275,10 @@ def task_table(
                 continue
             final, best, best_at = final_and_best(curve)
             cells += [f"{final:.2f}", f"{best:.2f} ({format_steps(best_at)})"]
+        if plateau is not None:
+            main_curve = metric_curve(rows, main)
+            start, level = plateau_start(main_curve, plateau) if len(main_curve[0]) else (math.nan, math.nan)
+            cells.append("-" if math.isnan(start) else f"{format_steps(start)} ({level:.2f})")
         timing = wall_time(folders[(algo, task, seed)])
         speed, hours = ("n/a", "n/a") if timing is None else (_rate(*timing), f"{timing[1] / 3600:.1f}")
         cells += [format_steps(float(rows[-1]["env_steps"])), speed, hours]
@@ -257,12 +287,12 @@ def task_table(
         episodes |= {int(row["n_episodes"]) for row in rows if _is_number(row.get("n_episodes"))}
     if floor is not None:
         values = [_scaled(floor, metric) for metric in metrics]
-        cells = [cell for value in values for cell in (value, "-")] + ["-", "-", "-"]
+        cells = [cell for value in values for cell in (value, "-")] + ["-"] * (3 + (plateau is not None))
         lines.append(f"| random policy ({floor['n_episodes']:.0f} episodes) | {' | '.join(cells)} |")
-    main = main_metric(task)
     for reference in references:
         cells = [cell for metric in metrics for cell in (f"{reference.value:.2f}" if metric == main else "-", "-")]
-        lines.append(f"| {reference.algo}, {reference_label} | {' | '.join([*cells, '-', '-', '-'])} |")
+        cells += ["-"] * (3 + (plateau is not None))
+        lines.append(f"| {reference.algo}, {reference_label} | {' | '.join(cells)} |")
     return [*lines, "", evaluation_note(evaluations, episodes), ""]
 
 
@@ -373,7 +403,9 @@ def report(args: argparse.Namespace) -> str:
     curves: dict[str, dict[str, dict[tuple[str, int], Curve]]] = {}
     for task, shown in metrics.items():
         task_references = [reference for reference in args.reference if reference.task == task]
-        table = task_table(task, shown, by_task[task], folders, floors.get(task), task_references, args.reference_label)
+        table = task_table(
+            task, shown, by_task[task], folders, floors.get(task), task_references, args.reference_label, args.plateau
+        )
         lines += table
         curves[task] = {
             metric: {(algo, seed): metric_curve(rows, metric) for (algo, _, seed), rows in by_task[task].items()}
@@ -398,11 +430,16 @@ def main(argv: list[str] | None = None) -> int:
         "--reference", nargs="+", type=parse_reference, default=[], help="TASK:ALGO=VALUE, main metric (%% for rates)"
     )
     parser.add_argument("--reference-label", default="paper 20M", help="what the references are (legend and table)")
+    parser.add_argument(
+        "--plateau", type=float, default=None, help="also where the main metric plateaus, within this tolerance"
+    )
     args = parser.parse_args(argv)
     if args.random_episodes < 0 or args.random_games < 1:
         parser.error(
             f"--random-episodes must be >= 0 and --random-games >= 1, got {args.random_episodes} and {args.random_games}"
         )
+    if args.plateau is not None and not (math.isfinite(args.plateau) and args.plateau > 0):
+        parser.error(f"--plateau must be a positive number, got {args.plateau}")
     try:
         text = report(args)
     except ReportError as error:

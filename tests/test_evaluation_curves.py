@@ -5,6 +5,7 @@ import csv
 import json
 import math
 
+import numpy as np
 import pytest
 
 TASK = "cn-sparse-n3"
@@ -128,3 +129,38 @@ def test_paths_under_home_are_shown_from_home(curves, tmp_path, monkeypatch):
     monkeypatch.setenv("HOME", str(tmp_path))
     assert curves.shown_path(tmp_path / "results" / "runs.csv") == "$HOME/results/runs.csv"
     assert curves.shown_path(tmp_path.parent / "elsewhere.csv") == str(tmp_path.parent / "elsewhere.csv")
+
+
+@pytest.mark.parametrize(
+    "values, tolerance, expected",
+    [
+        # level = mean of the last 3 = 64; from 2M on every value is within 2 of it (1M: 60 is 4 below)
+        ([10.0, 60.0, 63.0, 65.0, 64.0, 63.0], 2.0, (2_000_000, 64.0)),
+        ([10.0, 60.0, 63.0, 65.0, 64.0, 63.0], 5.0, (1_000_000, 64.0)),
+        # a late dip leaves the plateau after it: 66 -> level 64, the dip at 4M (50) is outside
+        ([10.0, 64.0, 64.0, 64.0, 50.0, 71.0, 64.0, 57.0], 2.0, (math.nan, 64.0)),
+        ([10.0, 64.0, 64.0, 64.0, 50.0, 64.0, 64.0, 64.0], 2.0, (5_000_000, 64.0)),
+        ([30.0], 1.0, (0, 30.0)),  # one evaluation: its own level
+    ],
+)
+def test_plateau_start_against_worked_examples(curves, values, tolerance, expected):
+    steps = [1_000_000 * index for index in range(len(values))]
+    start, level = curves.plateau_start((np.array(steps, dtype=float), np.array(values)), tolerance)
+    assert level == pytest.approx(expected[1])
+    assert (math.isnan(start) and math.isnan(expected[0])) or start == expected[0]
+
+
+def test_plateau_column(curves, benchmark, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert curves.main([str(benchmark), "--out", str(out), "--random-episodes", "0", "--plateau", "7"]) == 0
+    text = (out / "evaluation_curves.md").read_text()
+    assert "| Coverage % plateau from (level, within 7) |" in text
+    # mappo: level (40 + 40 + 30) / 3 = 36.67; 1M-3M within 7 of it (30 is 6.67 below), 0 (10) is not
+    assert "| mappo s1 | 30.00 | 40.00 (1M) | 20.00 | 20.00 (3M) | 1M (36.67) | 3M | 2,500 | 1.0 |" in text
+    # saeir_ppo: level (20 + 50 + 60) / 3 = 43.33; 60 is 16.67 above: no plateau
+    assert "| saeir_ppo s1 | 60.00 | 60.00 (2M) | 0.00 | 0.00 (0) | - | 2M | n/a | n/a |" in text
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as stop:
+        curves.main([str(benchmark), "--out", str(out), "--plateau", "0"])
+    assert stop.value.code == 2
+    assert "--plateau must be a positive number, got 0.0" in one_line_error(capsys)

@@ -1,33 +1,98 @@
 #!/usr/bin/env bash
-# Issue 51 part 1 (running): copy each run's small files from $HOME/saeir-results/nav-calibrated (never checkpoints or
-# progress.csv) and print the table of evaluations on the study page (docs/results/navigation-calibrated.md).
-# usage, from main's root: bash docs/results/navigation-calibrated/report.sh
+# Issue 51 part 1's report (docs/results/navigation-calibrated.md), run from the repository root of main:
+#
+#   bash docs/results/navigation-calibrated/report.sh copy   # on the machine that makes the runs: copy each run's
+#                                                            # small files here (never checkpoints, models or progress.csv)
+#   bash docs/results/navigation-calibrated/report.sh        # the report, from the committed run files alone
+#
+# copy: from $HOME/saeir-results/nav-calibrated/<reading>/runs/<algo>/cn-sparse-n3_s1 (queue.sh's output; readings
+# no-penalty and reach) to runs/<algo>-<reading>/cn-sparse-n3_s1 here: spec.json, evaluations.csv, segments.json,
+# resume.log, done.json (a run still training is copied as far as it got); for SAEIR_PPO also the bonus, which needs
+# the run's progress.csv: bonus_by_2m.md (fire rate and mean bonus per scale per 2M env steps) and bonus.md/bonus.png
+# (the benchmark's --entropy-plot).
+# report: runs.csv here (every run's evaluations, the method renamed <algo>-<reading>, since both readings hold a
+# mappo seed 1) and evaluations.md (coverage, success and collision steps at every evaluation), then
+# evaluation_curves.md and curves_full.png (final, best and plateau within 2 points of coverage, success, per run;
+# the random floor; Table 1's values).
 set -euo pipefail
 RESULTS="${NAV_RESULTS:-$HOME/saeir-results/nav-calibrated}"
-DOCS="docs/results/navigation-calibrated"
+DOCS="${NAV_DOCS:-docs/results/navigation-calibrated}"
 PY="${PYTHON:-python}"
-for run in "$RESULTS"/*/runs/*/*_s*; do
-    [ -f "$run/spec.json" ] || continue
-    reading="$(basename "$(dirname "$(dirname "$(dirname "$run")")")")"
-    target="$DOCS/$reading/runs/$(basename "$(dirname "$run")")/$(basename "$run")"
-    mkdir -p "$target"
-    for name in spec.json evaluations.csv segments.json resume.log done.json; do
-        if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
-    done
-done
-"$PY" - "$DOCS" <<'PYTHON'
-import csv
+
+copy_bonus() {  # $1: a SAEIR_PPO run folder, $2: its folder here
+    {
+        echo "\`python -m sb3_saeir.benchmark --entropy-plot ${1/#$HOME/\$HOME}\`"
+        echo "(\`bonus.png\` is the \`system_entropy.png\` it wrote into the run folder):"
+        echo
+        "$PY" -m sb3_saeir.benchmark --entropy-plot "$1" | grep '^|'
+    } > "$2/bonus.md"
+    cp "$1/system_entropy.png" "$2/bonus.png"
+    "$PY" - "$1" "$2/bonus_by_2m.md" <<'EOF'
 import sys
 from pathlib import Path
 
+sys.path.insert(0, "benchmarks")
+from learning_speed import bonus_windows  # noqa: E402
+
+run, target = Path(sys.argv[1]), Path(sys.argv[2])
+intro = "The fire rate and mean bonus before beta per scale, averaged over each 2M env steps"
+lines = [f"{intro} (`benchmarks/learning_speed.py ... --bonus {run.name}`):", "", *bonus_windows(run, 2_000_000)]
+target.write_text("\n".join(lines) + "\n")
+EOF
+}
+
+copy_runs() {
+    local run reading algo target name
+    for run in "$RESULTS"/*/runs/*/*_s*; do
+        [ -f "$run/spec.json" ] && [[ "$run" != *.replaced-* ]] || continue
+        reading="$(basename "$(dirname "$(dirname "$(dirname "$run")")")")"
+        algo="$(basename "$(dirname "$run")")"
+        target="$DOCS/runs/$algo-$reading/$(basename "$run")"
+        mkdir -p "$target"
+        for name in spec.json evaluations.csv segments.json resume.log done.json; do
+            if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
+        done
+        if [ "$algo" = saeir_ppo ] && [ -f "$run/progress.csv" ]; then copy_bonus "$run" "$target"; fi
+        echo "copied $run -> $target ($([ -f "$run/done.json" ] && echo finished || echo "still training"))"
+    done
+}
+
+report() {
+    "$PY" - "$DOCS" <<'EOF'
+import sys
+from pathlib import Path
+
+from sb3_saeir.benchmark import read_rows, write_rows
+
 docs = Path(sys.argv[1])
-runs = sorted(docs.glob("*/runs/*/*/evaluations.csv"))
-print("| reading | method | env steps | coverage % | success % | collision steps per episode |")
-print("|---|---|---|---|---|---|")
-for path in runs:
-    reading, algo = path.parts[-5], path.parts[-3]
-    for row in csv.DictReader(open(path)):
-        steps = int(row["env_steps"])
-        print(f"| {reading} | {algo} | {steps / 1e6:.0f}M | {100 * float(row['coverage_rate_mean']):.1f} | "
-              f"{100 * float(row['success_mean']):.1f} | {float(row['collision_steps_mean']):.2f} |")
-PYTHON
+rows = []
+for path in sorted(docs.glob("runs/*/*/evaluations.csv")):
+    arm = path.parent.parent.name
+    rows += [{**row, "algo": arm} for row in read_rows(path)]
+    state = "finished" if (path.parent / "done.json").is_file() else "still training"
+    print(f"{arm}/{path.parent.name}: {len(read_rows(path))} evaluations, {state}")
+write_rows(docs / "runs.csv", rows)
+lines = [
+    "Every evaluation (200 greedy episodes): final-step coverage and success in %, collision steps per 25-step episode.",
+    "",
+    "| run | env steps | coverage % | success % | collision steps per episode |",
+    "|---|---|---|---|---|",
+]
+for row in rows:
+    lines.append(
+        f"| {row['algo']} s{row['seed']} | {float(row['env_steps']) / 1e6:.0f}M | {100 * float(row['coverage_rate_mean']):.1f} "
+        f"| {100 * float(row['success_mean']):.1f} | {float(row['collision_steps_mean']):.2f} |"
+    )
+(docs / "evaluations.md").write_text("\n".join(lines) + "\n")
+EOF
+    local references=(cn-sparse-n3:mappo-no-penalty=64.43)
+    if [ -d "$DOCS/runs/saeir_ppo-no-penalty" ]; then references+=(cn-sparse-n3:saeir_ppo-no-penalty=65.48); fi
+    "$PY" benchmarks/evaluation_curves.py --out "$DOCS" "$DOCS/runs.csv" --random-episodes 1000 \
+        --metrics coverage_rate success --plateau 2 --reference "${references[@]}"
+}
+
+case "${1:-report}" in
+    copy) copy_runs ;;
+    report) report ;;
+    *) echo "usage: bash docs/results/navigation-calibrated/report.sh [copy|report]" >&2; exit 2 ;;
+esac

@@ -11,7 +11,7 @@
 # the run's progress.csv: bonus_by_2m.md (fire rate and mean bonus per scale per 2M env steps) and bonus.md/bonus.png
 # (the benchmark's --entropy-plot).
 # report: runs.csv here (every run's evaluations, the method renamed <algo>-<reading>, since both readings hold a
-# mappo seed 1) and evaluations.md (coverage, success and collision steps at every evaluation), then
+# mappo seed 1), its table.md (the benchmark's table) and evaluations.md (coverage, success and collision steps at every evaluation), then
 # evaluation_curves.md and curves_full.png (final, best and plateau within 2 points of coverage, success, per run;
 # the random floor; Table 1's values).
 set -euo pipefail
@@ -62,7 +62,7 @@ report() {
 import sys
 from pathlib import Path
 
-from sb3_saeir.benchmark import read_rows, write_rows
+from sb3_saeir.benchmark import read_rows, table_markdown, write_rows
 
 docs = Path(sys.argv[1])
 rows = []
@@ -72,6 +72,7 @@ for path in sorted(docs.glob("runs/*/*/evaluations.csv")):
     state = "finished" if (path.parent / "done.json").is_file() else "still training"
     print(f"{arm}/{path.parent.name}: {len(read_rows(path))} evaluations, {state}")
 write_rows(docs / "runs.csv", rows)
+(docs / "table.md").write_text(table_markdown(read_rows(docs / "runs.csv")))  # as the benchmark reports it
 lines = [
     "Every evaluation (200 greedy episodes): final-step coverage and success in %, collision steps per 25-step episode.",
     "",

@@ -1,7 +1,9 @@
 """Benchmark runner: CSV, table and curves from tiny runs; resume; failures; the Ray path; the entropy plot."""
 
 import csv
+import itertools
 import json
+import math
 import os
 import shutil
 import signal
@@ -14,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.stats import mannwhitneyu
+from scipy.stats import mannwhitneyu, rankdata
 
 from sb3_saeir import benchmark
 from sb3_saeir.benchmark import RunSpec, execute_run, execution, main, parse_seeds, run_folder
@@ -275,13 +277,37 @@ def test_pairwise_differences_worked_examples():
 
 def test_mann_whitney_with_ties_worked_example():
     """[1, 2] against [2, 3]: mid-ranks 1, 2.5 | 2.5, 4, U = 0.5 (the tie counts half); the six splits of the pooled
-    ranks give U = 0.5, 0.5, 2, 2, 3.5, 3.5, four of them at least 1.5 from the mean 2: p = 4 / 6. Beyond max_splits
-    the p-value is SciPy's normal approximation."""
+    ranks give U = 0.5, 0.5, 2, 2, 3.5, 3.5, four of them at least 1.5 from the mean 2: p = 4 / 6."""
     assert benchmark.mann_whitney([1, 2], [2, 3]) == pytest.approx((0.5, 4 / 6))
     assert benchmark.mann_whitney([1, 2, 3], [4, 5, 6])[1] == pytest.approx(2 / 20)
-    first, second = list(range(10)), list(range(5, 15))
-    expected = mannwhitneyu(first, second, alternative="two-sided", method="asymptotic").pvalue
-    assert benchmark.mann_whitney(first, second, max_splits=100)[1] == pytest.approx(expected)
+
+
+def enumerated_mann_whitney(first, second):
+    """The exact two-sided p-value by listing every split of the pooled mid-ranks (the slow reference)."""
+    ranks = rankdata(np.concatenate([first, second]))
+    n_first, n_second = len(first), len(second)
+    offset, mean = n_first * (n_first + 1) / 2, n_first * n_second / 2
+    observed = ranks[:n_first].sum() - offset
+    splits = [ranks[list(split)].sum() - offset for split in itertools.combinations(range(n_first + n_second), n_first)]
+    return observed, sum(abs(u - mean) >= abs(observed - mean) - 1e-9 for u in splits) / len(splits)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_mann_whitney_counts_equal_listing_every_split(seed):
+    rng = np.random.default_rng(seed)
+    n_first, n_second = rng.integers(1, 8, size=2)
+    levels = 4 if seed % 2 else 1000  # few levels: many ties
+    first, second = rng.integers(0, levels, n_first) / levels, rng.integers(0, levels, n_second) / levels
+    assert benchmark.mann_whitney(list(first), list(second)) == pytest.approx(enumerated_mann_whitney(first, second))
+
+
+def test_mann_whitney_fifteen_seeds_each_is_exact():
+    """Without ties the exact p-value is SciPy's exact one; 15 against 15 all apart: 2 / C(30, 15)."""
+    rng = np.random.default_rng(0)
+    first, second = rng.normal(size=15), rng.normal(size=15) + 1.0
+    expected = mannwhitneyu(first, second, alternative="two-sided", method="exact").pvalue
+    assert benchmark.mann_whitney(list(first), list(second))[1] == pytest.approx(expected, rel=1e-9)
+    assert benchmark.mann_whitney(list(range(15)), list(range(15, 30)))[1] == pytest.approx(2 / math.comb(30, 15))
 
 
 def test_system_entropy_summary_worked_example():

@@ -5,7 +5,6 @@ stratified-bootstrap confidence intervals (rliable) and the exact two-sided Mann
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -149,31 +148,36 @@ def _untrimmed_iqm_note(untrimmed: list[str]) -> str:
     )
 
 
-def mann_whitney(first: list[float], second: list[float], max_splits: int = 200_000) -> tuple[float, float]:
+def mann_whitney(first: list[float], second: list[float]) -> tuple[float, float]:
     """The Mann-Whitney U statistic of ``first`` against ``second`` (pairs where ``first`` is above, ties counting half)
-    and its two-sided p-value: exact, from every split of the pooled values into two groups of these sizes (mid-ranks,
-    so ties are handled; the share of splits whose U is at least as far from its mean as the observed one), or SciPy's
-    normal approximation when there are more than ``max_splits`` splits.
+    and its exact two-sided p-value: the share of all splits of the pooled values into two groups of these sizes whose
+    U is at least as far from its mean as the observed one, over mid-ranks (so ties are handled).
+
+    The splits are counted, not listed: the number of ways to pick ``len(first)`` of the pooled mid-ranks with each
+    rank sum is built one value at a time (the doubled mid-ranks are integers), so 15 seeds against 15 (1.6e8 splits)
+    cost a few thousand additions.
 
     :param first: final values of the first method, one per seed
     :param second: final values of the second method, one per seed
-    :param max_splits: largest number of splits enumerated for the exact p-value
     :return: ``(U, p)``
     """
-    from scipy.stats import mannwhitneyu, rankdata
+    from scipy.stats import rankdata
 
     n_first, n_second = len(first), len(second)
     ranks = rankdata(np.concatenate([first, second]))  # (n_first + n_second,) mid-ranks of the pooled values
     offset = n_first * (n_first + 1) / 2
     statistic = float(ranks[:n_first].sum() - offset)
-    if math.comb(n_first + n_second, n_first) > max_splits:
-        return statistic, float(mannwhitneyu(first, second, alternative="two-sided", method="asymptotic").pvalue)
+    doubled = np.rint(2 * ranks).astype(np.int64)  # mid-ranks are multiples of 1/2
+    # counts[k, s]: subsets of k of the values seen so far whose doubled rank sum is s (float64: exact below 2**53)
+    counts = np.zeros((n_first + 1, int(doubled.sum()) + 1))
+    counts[0, 0] = 1.0
+    for seen, rank in enumerate(doubled, start=1):
+        for k in range(min(seen, n_first), 0, -1):  # descending: each value enters a subset at most once
+            counts[k, rank:] += counts[k - 1, : counts.shape[1] - rank]
+    split_statistics = np.arange(counts.shape[1]) / 2 - offset  # U of a split with doubled rank sum s
     mean = n_first * n_second / 2
-    split_statistics = np.array(
-        [ranks[list(split)].sum() - offset for split in itertools.combinations(range(n_first + n_second), n_first)]
-    )
     extreme = np.abs(split_statistics - mean) >= abs(statistic - mean) - 1e-9
-    return statistic, float(extreme.mean())
+    return statistic, float(counts[n_first, extreme].sum() / counts[n_first].sum())
 
 
 def pairwise_markdown(rows: list[dict[str, Any]]) -> str:

@@ -173,8 +173,11 @@ def markdown(stats: dict[str, dict[str, dict[str, Any]]], title: str, positions:
 
 
 def model_label(model_path: Path) -> str:
-    """``<algo>/<run>/<file stem>`` of a benchmark model path (``runs/<algo>/<task>_s<seed>/<file>.zip``)."""
+    """``<benchmark folder>/<algo>/<run>/<file stem>`` of a benchmark model path
+    (``<benchmark folder>/runs/<algo>/<task>_s<seed>/<file>.zip``; without the first part for other paths)."""
     parts = model_path.parts
+    if len(parts) >= 5 and parts[-4] == "runs":
+        return "/".join((parts[-5], *parts[-3:-1], model_path.stem))
     return "/".join((*parts[-3:-1], model_path.stem)) if len(parts) >= 3 else model_path.stem
 
 

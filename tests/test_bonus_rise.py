@@ -78,8 +78,9 @@ def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):
     assert bonus_rise.main(["--model", *models, "--n-games", "2", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert text == out.read_text()
-    rows = [line for line in text.splitlines() if line.startswith("| mshg_only/") or line.startswith("| mappo/")]
+    rows = [line for line in text.splitlines() if line.startswith(f"| {tmp_path.name}/")]
     assert [row.split(" | ")[1] for row in rows] == ["team", "group", "individual", "critic"]
+    assert rows[0].startswith(f"| {tmp_path.name}/mshg_only/cn-sparse-n3_s1/cn-sparse-n3 | team |")  # folder/algo/run/file
     assert all(row.split(" | ")[2] == str(23 * 6) for row in rows)  # steps 2-24 of 2 games x 3 agents
 
 

@@ -102,7 +102,7 @@ def test_main_on_benchmark_models(critic_diagnostics, tmp_path, capsys):
     assert critic_diagnostics.main(["--model", str(model), "--draws", "4", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert text == out.read_text()
-    rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| mshg_only/")]
+    rows = [line.split(" | ") for line in text.splitlines() if line.startswith(f"| {tmp_path.name}/mshg_only/")]
     assert [row[2] for row in rows[:3]] == ["team", "group", "individual"] and rows[0][1] == "yes"
     assert sum(float(row[8]) for row in rows[:3]) == pytest.approx(1.0, abs=1e-3)  # W_K sum to 1
     assert all(row[9].count("-") == 1 for row in rows[:3])  # the logged range of its two updates

@@ -18,7 +18,8 @@ with a rise above +1, the median threshold and the median margin ``d - d*`` (the
 fire rate (equal to the code bonus's), and the fire rate under three changes of setting that leave the authors'
 defaults as they are: the values in return space (what ``normalize_values=False`` would feed the bonus: the
 normalised values times the scale's ``ValueNorm`` standard deviation ``sigma``, printed), the values times 4 (a
-softmax temperature of 1/4; no such setting exists), and the window restarted at every episode start.
+softmax temperature of 1/4; no such setting exists), and the window restarted at every episode start. A second table
+gives the mean normalised value at every fifth position of the window (and its last), the shape the rises come from.
 """
 
 from __future__ import annotations
@@ -98,6 +99,7 @@ def scale_readings(values: np.ndarray, values_return_space: np.ndarray, episode_
         "fire_rate_return_space": float((saeir_bonus(values_return_space)[2:] > 0).mean()),
         "fire_rate_temperature": float((saeir_bonus(TEMPERATURE_FACTOR * values)[2:] > 0).mean()),
         "fire_rate_episode_windows": float((saeir_bonus(values, episode_starts=episode_starts)[2:] > 0).mean()),
+        "profile": values.mean(axis=1),  # (T,) mean value at each position of the window
     }
 
 
@@ -134,6 +136,15 @@ def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
                 f"| {row['sigma']:.2f}, {row['fire_rate_return_space']:.4f} | {row['fire_rate_temperature']:.4f} "
                 f"| {row['fire_rate_episode_windows']:.4f} |"
             )
+    n_steps = len(next(iter(next(iter(results.values())).values()))["profile"])
+    positions = sorted({*range(0, n_steps, 5), n_steps - 1})
+    lines += ["", f"| model | scale | {' | '.join(f'mean value at step {t}' for t in positions)} |"]
+    lines.append("|---" * (2 + len(positions)) + "|")
+    for name, scales in results.items():
+        for scale, row in scales.items():
+            profile = row["profile"]
+            cells = " | ".join(f"{profile[t]:+.3f}" if t < len(profile) else "-" for t in positions)
+            lines.append(f"| {name} | {scale} | {cells} |")
     return "\n".join(lines) + "\n"
 
 

@@ -103,7 +103,7 @@ NAMES = {
     "sn_mappo": "SN-MAPPO", "rnd": "RND", "elign": "Elign",
 }  # fmt: skip
 # the tasks as the tables name them (docs/results.md says what they are)
-NAV3, NAV3_FREE, NAV4 = "N=3", "N=3, no penalty", "N=4"
+NAV3, NAV3_FREE, NAV3_REACH, NAV4 = "N=3", "N=3, no penalty", "N=3, reach", "N=4"
 THREE, COUNTER = "3 vs 1", "counterattack"
 
 
@@ -193,6 +193,13 @@ STUDIES: dict[str, Study] = {
         (
             *methods(NAV3, ("navigation-full-budget/runs.csv:{algo}",), "mappo saeir_ppo", RANDOM["mpe N=3"]),
             *methods(NAV4, ("navigation-full-budget/runs.csv:{algo}",), "mappo", RANDOM["mpe N=4"]),
+        ),
+        checkpoints=tuple(2e6 * k for k in range(10)),
+    ),
+    "navigation-calibrated": Study(
+        (
+            Row(NAV3_FREE, "MAPPO", ("navigation-calibrated/runs.csv:mappo-no-penalty",), RANDOM["mpe N=3"], NONE),
+            Row(NAV3_REACH, "MAPPO", ("navigation-calibrated/runs.csv:mappo-reach",), RANDOM["mpe N=3"], NONE),
         ),
         checkpoints=tuple(2e6 * k for k in range(10)),
     ),
@@ -483,7 +490,7 @@ def block_lines(command: str, results: Path) -> list[str]:
     kind, *arguments = command.split()
     if kind == "summary":
         chosen = [(name, row) for name, study in STUDIES.items() for row in study.rows if row.summary]
-        order = [NAV3, NAV3_FREE, NAV4, THREE, COUNTER]  # by task family, each study's rows in its order
+        order = [NAV3, NAV3_FREE, NAV3_REACH, NAV4, THREE, COUNTER]  # by task family, each study's rows in its order
         chosen.sort(key=lambda item: order.index(item[1].task))
         return rows_table(chosen, results, summary=True)
     if kind == "rows":
@@ -529,9 +536,10 @@ def pages(docs: Path) -> list[Path]:
 
 
 def plot_navigation(results: Path, path: Path) -> None:
-    """The summary's navigation figure, four panels: every seed's coverage curve (thin) and each method's mean (thick)
-    at 5% of the paper's budget with and without the collision penalty, then N=3 and N=4 at its full budget; the random
-    policy dotted, Table 1 dashed in the method's colour."""
+    """The summary's navigation figure, six panels: every seed's coverage curve (thin) and each method's mean (thick)
+    at 5% of the paper's budget with and without the collision penalty, N=3 and N=4 at its full budget, then N=3 at the
+    full budget without the collision penalty and with the ``reach`` reward; the random policy dotted, Table 1 dashed
+    in the method's colour on the full-budget panels."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -540,14 +548,18 @@ def plot_navigation(results: Path, path: Path) -> None:
     from sb3_saeir.benchmark.reports import format_steps, save_figure
 
     five, full = STUDIES["navigation-5pct"].rows, STUDIES["navigation-full-budget"].rows
+    calibrated = STUDIES["navigation-calibrated"].rows
     panels = [
         ("N=3 at 5% of the budget (5 seeds)", [r for r in five if r.task == NAV3]),
         ("N=3 without collision penalty, 5% (5 seeds)", [r for r in five if r.task == NAV3_FREE]),
         ("N=3 at the full budget (1 seed)", [r for r in full if r.task == NAV3]),
         ("N=4 at the full budget (1 seed)", [r for r in full if r.task == NAV4]),
+        ("N=3 without collision penalty, full budget (1 seed)", [r for r in calibrated if r.task == NAV3_FREE]),
+        ("N=3, reach reward, full budget (1 seed)", [r for r in calibrated if r.task == NAV3_REACH]),
     ]
     colors = {"MAPPO": "C0", "SAEIR_PPO": "C3", "MSHG-only": "C2", "SAE-only": "C1"}
-    figure, axes = plt.subplots(2, 2, figsize=(11.0, 7.6))
+    algos = {name: algo for algo, name in NAMES.items()}
+    figure, axes = plt.subplots(2, 3, figsize=(15.0, 7.6))
     for axis, (title, rows) in zip(axes.flat, panels):
         for row in rows:
             runs = row_runs(row, results)
@@ -557,8 +569,9 @@ def plot_navigation(results: Path, path: Path) -> None:
             common = min(len(steps) for steps, _ in curves)
             mean = np.mean([values[:common] for _, values in curves], axis=0)  # (common,)
             axis.plot(curves[0][0][:common], mean, color=colors[row.method], linewidth=2.2, label=row.method)
-            if row.paper is None and (runs[0]["task"], runs[0]["algo"]) in PAPER and "full" in title:
-                value = float(PAPER[(runs[0]["task"], runs[0]["algo"])].split(" ± ")[0])
+            paper = PAPER.get((runs[0]["task"], algos[row.method]))
+            if paper is not None and "full" in title:
+                value = float(paper.split(" ± ")[0])
                 axis.axhline(value, color=colors[row.method], linestyle="--", linewidth=1, label=f"{row.method}, Table 1")
         axis.axhline(float(rows[0].random), color="0.35", linestyle=":", linewidth=1, label="random")
         axis.set_title(title, fontsize=10)

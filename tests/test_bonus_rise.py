@@ -59,6 +59,7 @@ def test_fire_rate_equals_the_code_bonus(bonus_rise):
         assert readings["fire_rate_by_rise"] == pytest.approx(expected)
         assert readings["fire_rate_return_space"] == pytest.approx(np.mean(saeir_bonus(3.0 * values)[2:] > 0))
         assert readings["above_one"] == pytest.approx(np.mean(bonus_rise.rises(values)[2:] > 1.0))
+        assert readings["profile"] == pytest.approx(values.mean(axis=1))
     # step 6 rises 1.57 above the whole window's earlier values (not enough: only step 2 fires) but 3 above its own
     # episode's (steps 4-5), where it fires; of steps 2-7, one fires in the rollout's window and two in episode windows
     values = np.tile(np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 3.0, 0.0])[:, None], (1, 2))
@@ -79,9 +80,11 @@ def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):
     text = capsys.readouterr().out
     assert text == out.read_text()
     rows = [line for line in text.splitlines() if line.startswith(f"| {tmp_path.name}/")]
-    assert [row.split(" | ")[1] for row in rows] == ["team", "group", "individual", "critic"]
+    assert [row.split(" | ")[1] for row in rows[:4]] == ["team", "group", "individual", "critic"]
     assert rows[0].startswith(f"| {tmp_path.name}/mshg_only/cn-sparse-n3_s1/cn-sparse-n3 | team |")  # folder/algo/run/file
-    assert all(row.split(" | ")[2] == str(23 * 6) for row in rows)  # steps 2-24 of 2 games x 3 agents
+    assert all(row.split(" | ")[2] == str(23 * 6) for row in rows[:4])  # steps 2-24 of 2 games x 3 agents
+    assert "| mean value at step 0 | mean value at step 5 |" in text and "| mean value at step 24 |" in text
+    assert len(rows) == 8 and rows[4].count(" | ") == 7  # the profile table: model, scale, positions 0-20 and 24
 
 
 def test_models_without_spec_are_refused(bonus_rise, tmp_path, capsys):

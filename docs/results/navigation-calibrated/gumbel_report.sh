@@ -74,12 +74,16 @@ EOF
         --thresholds 10 20
 }
 
-models() {  # $1: "1m" or "3m"; the models of seeds 6-8 of each arm
+models() {  # $1: "1m" or "3m"; the models of seeds 6-8 of each arm that exist (3m: of finished 3M runs)
     local arm seed run
     for arm in "${ARMS[@]}"; do
         for seed in 6 7 8; do
             run="$RESULTS/$arm/runs/mshg_only/${TASK}_s$seed"
-            if [ "$1" = 3m ]; then echo "$run/$TASK.zip"; else ls "$run/${TASK}_"*_steps.zip; fi
+            if [ "$1" = 3m ]; then
+                if [ -d "$run" ] && finished_3m "$run"; then echo "$run/$TASK.zip"; fi
+            else
+                compgen -G "$run/${TASK}_*_steps.zip" || true
+            fi
         done
     done
 }
@@ -104,7 +108,8 @@ rise() {
     done
     mapfile -t late < <(models 3m)
     {
-        echo "\`python benchmarks/bonus_rise.py --model <the calibrated full-budget models> <seeds 6-8 of each MSHG-only arm at 3M>\`"
+        echo "\`python benchmarks/bonus_rise.py --model <the calibrated full-budget models> <seeds 6-8 of each MSHG-only arm at 3M,"
+        echo "those finished>\`"
         echo "(one rollout of 128 games per model, rollout seed 20000; steps 2-24 of each 25-step window):"
         echo
         "$PY" benchmarks/bonus_rise.py --model "${full[@]}" "${late[@]}"

@@ -258,7 +258,9 @@ def plot_seed_curves(curves: dict[tuple[str, str], dict[int, Curve]], path: Path
 
 
 def bonus_windows(run: Path, window: float) -> list[str]:
-    """The SAEIR bonus's fire rate and mean size per scale, averaged over the rollouts of each ``window`` env steps.
+    """The SAEIR bonus's fire rate and mean size per scale, averaged over the rollouts of each ``window`` env steps,
+    and the entropy of each critic's value-softmax over the rollout window (``rollout/value_entropy_<scale>``) where
+    the run logged it.
 
     :param run: a SAEIR run's folder (``progress.csv`` with ``rollout/intrinsic_fire_rate_<scale>``; ``spec.json``
         for the number of agents, since ``progress.csv`` counts agent-steps)
@@ -274,10 +276,13 @@ def bonus_windows(run: Path, window: float) -> list[str]:
     if not scales:
         raise SystemExit(f"learning_speed: {run / 'progress.csv'} has no SAEIR bonus logs (rollout/intrinsic_fire_rate_*).")
     n_agents = int(json.loads((run / "spec.json").read_text())["config"]["env_kwargs"]["N"])
+    entropy_scales = [s for s in scales if f"rollout/value_entropy_{s}" in rows[0]]
     header = [f"fire rate {s}" for s in scales] + [f"bonus mean {s}" for s in scales]
+    header += [f"value entropy {s}" for s in entropy_scales]
     lines = [f"| env steps | {' | '.join(header)} |", "|---" * (len(header) + 1) + "|"]
     series = [numeric_series(rows, f"rollout/intrinsic_fire_rate_{s}") for s in scales]
     series += [numeric_series(rows, f"rollout/intrinsic_reward_mean_{s}") for s in scales]
+    series += [numeric_series(rows, f"rollout/value_entropy_{s}") for s in entropy_scales]
     env_steps = np.array(series[0][0]) / n_agents  # (n_rollouts,) agent-steps -> env steps
     for start in np.arange(0.0, env_steps.max(), window):
         inside = (env_steps > start) & (env_steps <= start + window)

@@ -136,8 +136,20 @@ def test_bonus_windows_average_per_window_in_env_steps(speed, tmp_path):
         for agent_steps, fire in ((4, 0.1), (8, 0.3), (12, 0.5), (16, 0.7)):
             writer.writerow([agent_steps, fire, 2 * fire])
     lines = speed.bonus_windows(run, window=2.0)
-    assert lines[2].startswith("| 0M-2e-06M | 2.00e-01 | 4.00e-01 |")
-    assert lines[3].startswith("| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 |")
+    assert lines[0] == "| env steps | fire rate team | bonus mean team |"
+    assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 |"
+    assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 |"
+    # with the value-softmax entropy logged, its mean per window comes after the bonus
+    rows = list(csv.reader(open(run / "progress.csv")))
+    with open(run / "progress.csv", "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow([*rows[0], "rollout/value_entropy_team"])
+        for row, entropy in zip(rows[1:], (3.0, 2.0, 1.5, 0.5)):
+            writer.writerow([*row, entropy])
+    lines = speed.bonus_windows(run, window=2.0)
+    assert lines[0] == "| env steps | fire rate team | bonus mean team | value entropy team |"
+    assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 | 2.50e+00 |"
+    assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 | 1.00e+00 |"
 
 
 def test_iqm_interval_is_the_aggregate_tables(speed):

@@ -141,6 +141,15 @@ def test_standardized_advantages_per_scale():
     for k in range(2):
         assert abs(standardized[..., k].mean()) < 1e-5
         assert standardized[..., k].std() == pytest.approx(1.0, abs=1e-3)
+    # the 1e-5 added to the std (the authors' MAPPO) matters where the spread is tiny: a hand-written example
+    buffer.advantages[:] = 0.0
+    buffer.advantages[0, 0, 0] = 7e-5  # scale 0: one step 7e-5 above 0; scale 1: all equal
+    mean = 7e-5 / buffer.advantages[..., 0].size
+    std = np.sqrt(((buffer.advantages[..., 0] - mean) ** 2).mean())
+    standardized = buffer.standardized_advantages()
+    assert standardized[0, 0, 0] == pytest.approx((7e-5 - mean) / (std + 1e-5), rel=1e-4)
+    assert standardized[1, 0, 0] == pytest.approx(-mean / (std + 1e-5), rel=1e-4)
+    assert not standardized[..., 1].any()  # no spread: zeros, not NaN
 
 
 class GroupRecorder:

@@ -33,6 +33,30 @@ def test_methods_train_two_iterations(env, policy, kwargs, scales, bonus):
     np.testing.assert_allclose(buffer.intrinsic_rewards, expected, atol=1e-6)
 
 
+def test_gradient_norms_are_clipped_per_network_at_max_grad_norm(env, monkeypatch):
+    """Each network (the actor, every critic scale) has its gradient norm clipped to ``max_grad_norm`` separately,
+    at every minibatch: the clip is called once per network and step with that network's parameters."""
+    model = MAPPO("MSHGPolicy", env, seed=0, n_steps=10, n_epochs=2, n_minibatches=2, max_grad_norm=0.37)
+    calls = []
+    original = th.nn.utils.clip_grad_norm_
+
+    def recording(parameters, max_norm, *args, **kwargs):
+        parameters = list(parameters)
+        calls.append((max_norm, {id(p) for p in parameters}))
+        norm = original(parameters, max_norm, *args, **kwargs)
+        total = th.linalg.vector_norm(th.stack([th.linalg.vector_norm(p.grad) for p in parameters if p.grad is not None]))
+        assert total <= max_norm * (1 + 1e-4)  # clipped to the bound given
+        return norm
+
+    monkeypatch.setattr(th.nn.utils, "clip_grad_norm_", recording)
+    model.learn(10 * env.num_envs)
+    networks = [model.policy.actor_parameters()] + [model.policy.critic_parameters(s) for s in model.policy.scales]
+    expected = [{id(p) for p in parameters} for parameters in networks]
+    assert len(calls) == 2 * 2 * len(expected)  # epochs x minibatches x networks
+    assert all(max_norm == 0.37 for max_norm, _ in calls)
+    assert [ids for _, ids in calls[: len(expected)]] == expected
+
+
 def test_mappo_defaults():
     assert MAPPO.policy_aliases["MlpPolicy"] is MAPPOPolicy
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)

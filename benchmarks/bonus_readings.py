@@ -87,7 +87,7 @@ def rollout_windows(experiment: Experiment, n_rollouts: int) -> list[dict[str, A
                 "episode_starts": buffer.episode_starts.copy(),
                 "last_values": buffer.last_values.copy(),
                 "last_dones": buffer.last_dones.copy(),
-                "scales": tuple(model.policy.scales),  # type: ignore[attr-defined]
+                "scales": tuple(model.policy.scales),  # type: ignore[attr-defined, arg-type]
                 "observations": buffer.observations.copy(),
                 "critic_states": buffer.critic_states[0].copy(),
                 "denormalized_values": buffer.denormalized_values.copy(),
@@ -181,14 +181,34 @@ def model_label(model_path: Path) -> str:
     return "/".join((*parts[-3:-1], model_path.stem)) if len(parts) >= 3 else model_path.stem
 
 
-def check_run_models(parser: argparse.ArgumentParser, models: list[Path]) -> None:
-    """Refuse (``parser.error``) model paths that are not files or have no ``spec.json`` of a benchmark run beside them."""
-    missing = [str(path) for path in models if not path.is_file()]
+def add_run_model_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of the scripts that read benchmark run models on their own rollouts (``bonus_rise.py``,
+    ``critic_diagnostics.py``): ``--model``, ``--rollouts``, ``--n-games``, ``--seed``, ``--out``."""
+    parser.add_argument("--model", nargs="+", type=Path, required=True, help="model zip(s), each with its spec.json")
+    parser.add_argument("--rollouts", type=int, default=1, help="rollouts per model")
+    parser.add_argument("--n-games", type=int, default=None, help="games per rollout (default: the run's)")
+    parser.add_argument("--seed", type=int, default=20_000, help="seed of the rollout games (and of any random draw)")
+    parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
+
+
+def check_run_model_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse (``parser.error``) fewer than one rollout, and model paths that are not files or have no ``spec.json``
+    of a benchmark run beside them."""
+    if args.rollouts < 1:
+        parser.error(f"--rollouts must be at least 1, got {args.rollouts}")
+    missing = [str(path) for path in args.model if not path.is_file()]
     if missing:
         parser.error(f"no model file at {', '.join(missing)}")
-    no_spec = [str(path) for path in models if not (path.parent / "spec.json").is_file()]
+    no_spec = [str(path) for path in args.model if not (path.parent / "spec.json").is_file()]
     if no_spec:
         parser.error(f"no spec.json next to {', '.join(no_spec)} (give models of benchmark runs)")
+
+
+def emit(text: str, out: Path | None) -> None:
+    """Print the Markdown, and write it to ``out`` too when given."""
+    sys.stdout.write(text)
+    if out is not None:
+        out.write_text(text)
 
 
 def _fmt(value: float) -> str:
@@ -224,10 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         experiment.close()
     stats = reading_statistics(windows, args.coef, args.reset_at_episode_start)
     title = args.title or (f"{len(args.model)} model(s) in {args.model[0].parent.parent}" if args.model else "untrained")
-    text = markdown(stats, title, args.positions)
-    sys.stdout.write(text)
-    if args.out is not None:
-        args.out.write_text(text)
+    emit(markdown(stats, title, args.positions), args.out)
     return 0
 
 

@@ -25,13 +25,19 @@ gives the mean normalised value at every fifth position of the window (and its l
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch as th
-from bonus_readings import check_run_models, load_experiment, model_label, rollout_windows
+from bonus_readings import (
+    add_run_model_arguments,
+    check_run_model_arguments,
+    emit,
+    load_experiment,
+    model_label,
+    rollout_windows,
+)
 
 from sb3_saeir.intrinsic import saeir_bonus
 
@@ -150,21 +156,12 @@ def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--model", nargs="+", type=Path, required=True, help="model zip(s), each with its spec.json")
-    parser.add_argument("--rollouts", type=int, default=1, help="rollouts per model")
-    parser.add_argument("--n-games", type=int, default=None, help="games per rollout (default: the run's)")
-    parser.add_argument("--seed", type=int, default=20_000, help="seed of the rollout games")
-    parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
+    add_run_model_arguments(parser)
     args = parser.parse_args(argv)
-    if args.rollouts < 1:
-        parser.error(f"--rollouts must be at least 1, got {args.rollouts}")
-    check_run_models(parser, args.model)
+    check_run_model_arguments(parser, args)
     th.set_num_threads(1)
     results = {model_label(path): model_readings(path, args.rollouts, args.n_games, args.seed) for path in args.model}
-    text = markdown(results)
-    sys.stdout.write(text)
-    if args.out is not None:
-        args.out.write_text(text)
+    emit(markdown(results), args.out)
     return 0
 
 

@@ -31,13 +31,19 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch as th
-from bonus_readings import check_run_models, load_experiment, model_label, rollout_windows
+from bonus_readings import (
+    add_run_model_arguments,
+    check_run_model_arguments,
+    emit,
+    load_experiment,
+    model_label,
+    rollout_windows,
+)
 from stable_baselines3.common.utils import explained_variance
 
 from sb3_saeir.mappo.losses import scale_advantage_weights
@@ -167,24 +173,17 @@ def markdown(results: dict[str, dict[str, Any]], n_draws: int) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--model", nargs="+", type=Path, required=True, help="model zip(s), each with its spec.json")
-    parser.add_argument("--rollouts", type=int, default=1, help="rollouts per model")
+    add_run_model_arguments(parser)
     parser.add_argument("--draws", type=int, default=32, help="Gumbel draws per state")
-    parser.add_argument("--n-games", type=int, default=None, help="games per rollout (default: the run's)")
-    parser.add_argument("--seed", type=int, default=20_000, help="seed of the rollout games and the draws")
-    parser.add_argument("--out", type=Path, default=None, help="also write the Markdown to this file")
     args = parser.parse_args(argv)
-    if args.rollouts < 1 or args.draws < 2:
-        parser.error(f"--rollouts must be at least 1 and --draws at least 2, got {args.rollouts} and {args.draws}")
-    check_run_models(parser, args.model)
+    if args.draws < 2:
+        parser.error(f"--draws must be at least 2, got {args.draws}")
+    check_run_model_arguments(parser, args)
     th.set_num_threads(1)
     results = {
         model_label(path): model_diagnostics(path, args.rollouts, args.draws, args.n_games, args.seed) for path in args.model
     }
-    text = markdown(results, args.draws)
-    sys.stdout.write(text)
-    if args.out is not None:
-        args.out.write_text(text)
+    emit(markdown(results, args.draws), args.out)
     return 0
 
 

@@ -115,4 +115,4 @@ def test_bad_arguments_are_refused(critic_diagnostics, tmp_path, capsys):
     assert "no model file at" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         critic_diagnostics.main(["--model", str(tmp_path / "nothing.zip"), "--draws", "1"])
-    assert "--draws at least 2" in capsys.readouterr().err
+    assert "--draws must be at least 2, got 1" in capsys.readouterr().err

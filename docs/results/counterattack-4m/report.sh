@@ -21,25 +21,7 @@ PY="${PYTHON:-python}"
 TASK=grf-counterattack-easy
 
 copy_bonus() {  # $1: a SAEIR_PPO run folder, $2: its folder here
-    {
-        echo "\`python -m sb3_saeir.benchmark --entropy-plot ${1/#$HOME/\$HOME}\`"
-        echo "(\`bonus.png\` is the \`system_entropy.png\` it wrote into the run folder):"
-        echo
-        "$PY" -m sb3_saeir.benchmark --entropy-plot "$1" | grep '^|'
-    } > "$2/bonus.md"
-    cp "$1/system_entropy.png" "$2/bonus.png"
-    "$PY" - "$1" "$2/bonus_by_250k.md" <<'EOF'
-import sys
-from pathlib import Path
-
-sys.path.insert(0, "benchmarks")
-from learning_speed import bonus_windows  # noqa: E402
-
-run, target = Path(sys.argv[1]), Path(sys.argv[2])
-intro = "Per 250k env steps: the bonus's fire rate and mean before beta per scale, and each critic's value-softmax entropy"
-lines = [f"{intro} (`benchmarks/learning_speed.py ... --bonus {run.name}`):", "", *bonus_windows(run, 250_000)]
-target.write_text("\n".join(lines) + "\n")
-EOF
+    "$PY" benchmarks/bonus_files.py "$1" "$2" --window 250000 --name bonus_by_250k.md
 }
 
 copy_runs() {

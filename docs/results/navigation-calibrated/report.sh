@@ -20,25 +20,7 @@ DOCS="${NAV_DOCS:-docs/results/navigation-calibrated}"
 PY="${PYTHON:-python}"
 
 copy_bonus() {  # $1: a SAEIR_PPO run folder, $2: its folder here
-    {
-        echo "\`python -m sb3_saeir.benchmark --entropy-plot ${1/#$HOME/\$HOME}\`"
-        echo "(\`bonus.png\` is the \`system_entropy.png\` it wrote into the run folder):"
-        echo
-        "$PY" -m sb3_saeir.benchmark --entropy-plot "$1" | grep '^|'
-    } > "$2/bonus.md"
-    cp "$1/system_entropy.png" "$2/bonus.png"
-    "$PY" - "$1" "$2/bonus_by_2m.md" <<'EOF'
-import sys
-from pathlib import Path
-
-sys.path.insert(0, "benchmarks")
-from learning_speed import bonus_windows  # noqa: E402
-
-run, target = Path(sys.argv[1]), Path(sys.argv[2])
-intro = "The fire rate and mean bonus before beta per scale, averaged over each 2M env steps"
-lines = [f"{intro} (`benchmarks/learning_speed.py ... --bonus {run.name}`):", "", *bonus_windows(run, 2_000_000)]
-target.write_text("\n".join(lines) + "\n")
-EOF
+    "$PY" benchmarks/bonus_files.py "$1" "$2" --window 2000000 --name bonus_by_2m.md
 }
 
 copy_runs() {

@@ -240,3 +240,14 @@ class ReorderedMeetEnv(ToyMeetEnv):
         results = super().step(actions)
         self.agents = self.agents[::-1]
         return tuple(_reversed_dict(result) for result in results)
+
+
+class FreshSpacesMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` that builds a new observation space at every call (as some envs do) and counts the calls
+    in :attr:`space_calls`, shared by every instance of the process."""
+
+    space_calls = 0
+
+    def observation_space(self, agent):
+        type(self).space_calls += 1
+        return spaces.Box(0.0, 1.0, (2,), np.float32)

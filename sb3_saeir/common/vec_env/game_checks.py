@@ -66,6 +66,7 @@ class CheckedParallelEnv(BaseParallelWrapper):
         self._agent_names = list(env.possible_agents)  # as vectorized: SuperSuit keeps the first names
         self._agent_set = set(self._agent_names)
         self._warned: set[str] = set()
+        self._declared: dict[Any, spaces.Space] = {}  # each agent's observation space, asked once
         self.game_index = game_index
         self.episode_step = 0  # steps since the last reset
 
@@ -111,6 +112,14 @@ class CheckedParallelEnv(BaseParallelWrapper):
         index = self._agent_names.index(agent) if agent in self._agent_names else "?"
         return f"{self._game_name()}: game {self.game_index}, agent {index} ({agent}), {when}"
 
+    def _declared_space(self, agent: Any) -> spaces.Space:
+        """The agent's observation space, asked of the game once: PettingZoo's API has it fixed per agent, and an env
+        that builds a new space at every call would pay for it at every step of every agent."""
+        declared = self._declared.get(agent)
+        if declared is None:
+            declared = self._declared[agent] = self.env.observation_space(agent)
+        return declared
+
     def _check_observations(self, observations: dict) -> None:
         """Raise one line naming the env, game, agent and step when an observation is missing, unknown, not made of
         numbers (a string, ``None``, an object), of another shape than the declared observation space, or of a dtype
@@ -136,9 +145,9 @@ class CheckedParallelEnv(BaseParallelWrapper):
             if observation.dtype.kind not in NUMBER_KINDS:
                 raise GameFaultError(
                     f"{self._where(agent)}: the observation is {_describe(observations[agent])}, not numbers; return "
-                    f"a numeric array as the observation space declares ({self.env.observation_space(agent)})."
+                    f"a numeric array as the observation space declares ({self._declared_space(agent)})."
                 )
-            declared = self.env.observation_space(agent)
+            declared = self._declared_space(agent)
             expected = declared.shape
             if expected is not None and observation.shape != tuple(expected):
                 raise GameFaultError(

@@ -20,7 +20,7 @@ per critic scale:
   ``exp(lme_K)`` with ``lme_K = log mean_j exp(A_j^K)`` (printed as ``log mean exp(A)``: at least 0 for standardised
   advantages, 0.5 for a normal distribution; a heavy right tail makes it large, up to about ``sqrt(n)`` for ``n``
   samples), with the range of ``train/advantage_weight_<scale>`` over the
-  run's ``progress.csv`` when it lies next to the model;
+  run's ``progress.csv`` up to the model's agent-steps when it lies next to the model;
 - **the correlation of the scales' advantages** (Pearson, over the rollout's agent-steps).
 
 Writes the two Markdown tables to stdout (and ``--out``).
@@ -97,13 +97,19 @@ def advantage_correlations(advantages: np.ndarray, scales: tuple[str, ...]) -> d
     return {f"{scales[a]}-{scales[b]}": float(matrix[a, b]) for a in range(len(scales)) for b in range(a + 1, len(scales))}
 
 
-def logged_weight_ranges(progress: Path, scales: tuple[str, ...]) -> dict[str, tuple[float, float]]:
-    """Min and max of ``train/advantage_weight_<scale>`` over a run's ``progress.csv`` (empty if it has none)."""
+def logged_weight_ranges(
+    progress: Path, scales: tuple[str, ...], up_to: float = float("inf")
+) -> dict[str, tuple[float, float]]:
+    """Min and max of ``train/advantage_weight_<scale>`` over a run's ``progress.csv`` rows up to ``up_to`` agent-steps
+    (``time/total_timesteps``; a model kept at 1M reads the first 1M of a run trained on to 3M); empty without one."""
     if not progress.is_file():
         return {}
     columns: dict[str, list[float]] = {scale: [] for scale in scales}
     with progress.open(newline="") as handle:
         for row in csv.DictReader(handle):
+            steps = row.get("time/total_timesteps", "")
+            if steps and float(steps) > up_to:
+                break
             for scale in scales:
                 cell = row.get(f"train/advantage_weight_{scale}", "")
                 if cell:
@@ -133,7 +139,7 @@ def model_diagnostics(model_path: Path, n_rollouts: int, n_draws: int, n_games: 
     weights = np.mean([advantage_weights(w["advantages"]) for w in windows], axis=0)
     exps = np.mean([log_mean_exp(w["advantages"]) for w in windows], axis=0)
     correlations = advantage_correlations(np.concatenate([w["advantages"] for w in windows], axis=1), scales)
-    logged = logged_weight_ranges(model_path.parent / "progress.csv", scales)
+    logged = logged_weight_ranges(model_path.parent / "progress.csv", scales, up_to=model.num_timesteps)
     for k, scale in enumerate(scales):
         per_scale[scale].update({"weight": float(weights[k]), "log_mean_exp": float(exps[k])})
     trained_with_noise = bool(getattr(policy, "critic_gumbel_noise", False))

@@ -89,6 +89,7 @@ def test_logged_weight_ranges(critic_diagnostics, tmp_path):
         writer.writerows([[100, "", ""], [200, 0.30, 0.36], [300, 0.35, 0.31]])
     ranges = critic_diagnostics.logged_weight_ranges(progress, ("team", "group", "individual"))
     assert ranges == {"team": (0.30, 0.35), "group": (0.31, 0.36)}
+    assert critic_diagnostics.logged_weight_ranges(progress, ("team",), up_to=250) == {"team": (0.30, 0.30)}
     assert critic_diagnostics.logged_weight_ranges(tmp_path / "none.csv", ("team",)) == {}
 
 

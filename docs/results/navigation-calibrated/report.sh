@@ -12,8 +12,8 @@
 # (the benchmark's --entropy-plot).
 # report: runs.csv here (every run's evaluations, the method renamed <algo>-<reading>, since both readings hold a
 # mappo seed 1), its table.md (the benchmark's table) and evaluations.md (coverage, success and collision steps at every evaluation), then
-# evaluation_curves.md and curves_full.png (final, best and plateau within 2 points of coverage, success, per run;
-# the random floor; Table 1's values).
+# evaluation_curves.md and curves_full.png of the finished runs (finished.csv: final, best and plateau within 2 points
+# of coverage, success, per run; the random floor; Table 1's values).
 set -euo pipefail
 RESULTS="${NAV_RESULTS:-$HOME/saeir-results/nav-calibrated}"
 DOCS="${NAV_DOCS:-docs/results/navigation-calibrated}"
@@ -54,6 +54,8 @@ for path in sorted(docs.glob("runs/*/*/evaluations.csv")):
     state = "finished" if (path.parent / "done.json").is_file() else "still training"
     print(f"{arm}/{path.parent.name}: {len(read_rows(path))} evaluations, {state}")
 write_rows(docs / "runs.csv", rows)
+finished = {path.parent.parent.name for path in docs.glob("runs/*/*/done.json")}
+write_rows(docs / "finished.csv", [row for row in rows if row["algo"] in finished])  # evaluation_curves' input
 (docs / "table.md").write_text(table_markdown(read_rows(docs / "runs.csv")))  # as the benchmark reports it
 lines = [
     "Every evaluation (200 greedy episodes): final-step coverage and success in %, collision steps per 25-step episode.",
@@ -69,8 +71,10 @@ for row in rows:
 (docs / "evaluations.md").write_text("\n".join(lines) + "\n")
 EOF
     local references=(cn-sparse-n3:mappo-no-penalty=64.43)
-    if [ -d "$DOCS/runs/saeir_ppo-no-penalty" ]; then references+=(cn-sparse-n3:saeir_ppo-no-penalty=65.48); fi
-    "$PY" benchmarks/evaluation_curves.py --out "$DOCS" "$DOCS/runs.csv" --random-episodes 1000 \
+    if [ -f "$DOCS/runs/saeir_ppo-no-penalty/cn-sparse-n3_s1/done.json" ]; then
+        references+=(cn-sparse-n3:saeir_ppo-no-penalty=65.48)
+    fi
+    "$PY" benchmarks/evaluation_curves.py --out "$DOCS" "$DOCS/finished.csv" --random-episodes 1000 \
         --metrics coverage_rate success --plateau 2 --reference "${references[@]}"
 }
 

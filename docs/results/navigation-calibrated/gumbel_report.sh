@@ -25,8 +25,12 @@ PY="${PYTHON:-python}"
 ARMS=(mshg-gumbel mshg-no-gumbel)
 TASK=cn-sparse-n3
 
+finished_at() {  # $1: a run folder, $2: agent-steps; true when the run finished with that budget
+    [ -f "$1/done.json" ] && "$PY" -c 'import json, sys; sys.exit(json.load(open(sys.argv[1]))["n_timesteps"] != int(sys.argv[2]))' "$1/spec.json" "$2"
+}
+
 finished_3m() {  # $1: a run folder; true when it finished its 3M agent-steps
-    [ -f "$1/done.json" ] && "$PY" -c 'import json, sys; sys.exit(json.load(open(sys.argv[1]))["n_timesteps"] != 3000000)' "$1/spec.json"
+    finished_at "$1" 3000000
 }
 
 copy_runs() {
@@ -81,8 +85,10 @@ models() {  # $1: "1m" or "3m"; the models of seeds 6-8 of each arm that exist (
             run="$RESULTS/$arm/runs/mshg_only/${TASK}_s$seed"
             if [ "$1" = 3m ]; then
                 if [ -d "$run" ] && finished_3m "$run"; then echo "$run/$TASK.zip"; fi
-            else
-                compgen -G "$run/${TASK}_*_steps.zip" || true
+            elif compgen -G "$run/${TASK}_*_steps.zip" > /dev/null; then
+                compgen -G "$run/${TASK}_*_steps.zip"  # kept by the extension to 3M
+            elif [ -d "$run" ] && finished_at "$run" 1000000; then
+                echo "$run/$TASK.zip"  # finished at 1M, not yet extended
             fi
         done
     done

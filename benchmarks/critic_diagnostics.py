@@ -122,6 +122,7 @@ def model_diagnostics(model_path: Path, n_rollouts: int, n_draws: int, n_games: 
     experiment = load_experiment(model_path, None, None, n_games, seed)
     model = experiment.model
     assert model is not None
+    trained_steps = int(model.num_timesteps)  # before the rollouts, which count from 0 again
     th.manual_seed(seed)
     windows = rollout_windows(experiment, n_rollouts)
     policy = model.policy
@@ -139,7 +140,7 @@ def model_diagnostics(model_path: Path, n_rollouts: int, n_draws: int, n_games: 
     weights = np.mean([advantage_weights(w["advantages"]) for w in windows], axis=0)
     exps = np.mean([log_mean_exp(w["advantages"]) for w in windows], axis=0)
     correlations = advantage_correlations(np.concatenate([w["advantages"] for w in windows], axis=1), scales)
-    logged = logged_weight_ranges(model_path.parent / "progress.csv", scales, up_to=model.num_timesteps)
+    logged = logged_weight_ranges(model_path.parent / "progress.csv", scales, up_to=trained_steps)
     for k, scale in enumerate(scales):
         per_scale[scale].update({"weight": float(weights[k]), "log_mean_exp": float(exps[k])})
     trained_with_noise = bool(getattr(policy, "critic_gumbel_noise", False))
@@ -149,23 +150,25 @@ def model_diagnostics(model_path: Path, n_rollouts: int, n_draws: int, n_games: 
         "correlations": correlations,
         "logged_weights": logged,
         "trained_with_noise": trained_with_noise,
+        "trained_steps": trained_steps,
     }
 
 
 def markdown(results: dict[str, dict[str, Any]], n_draws: int) -> str:
     """The per-scale table and the correlation table."""
     lines = [
-        f"| model | trained with noise | scale | noise sd ({n_draws} draws) | state sd | noise / state | explained variance "
-        "| log mean exp(A) | W_K (rollout) | W_K logged over the run (min-max) |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| model | agent-steps | trained with noise | scale | noise sd ({n_draws} draws) | state sd | noise / state "
+        "| explained variance | log mean exp(A) | W_K (rollout) | W_K logged over the run (min-max) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, result in results.items():
         for scale, row in result["scales"].items():
             ratio = row["noise_sd"] / row["state_sd"] if row["state_sd"] > 0 else math.nan
             logged = result["logged_weights"].get(scale)
             logged_text = "-" if logged is None else f"{logged[0]:.4f}-{logged[1]:.4f}"
+            noise = "yes" if result["trained_with_noise"] else "no"
             lines.append(
-                f"| {name} | {'yes' if result['trained_with_noise'] else 'no'} | {scale} | {row['noise_sd']:.4f} "
+                f"| {name} | {result['trained_steps']:,} | {noise} | {scale} | {row['noise_sd']:.4f} "
                 f"| {row['state_sd']:.4f} | {ratio:.3f} | {row['explained_variance']:.3f} | {row['log_mean_exp']:.3f} "
                 f"| {row['weight']:.4f} | {logged_text} |"
             )

@@ -95,6 +95,7 @@ models() {  # $1: "1m" or "3m"; the models of seeds 6-8 of each arm that exist (
 }
 
 diagnose() {
+    mkdir -p "$DOCS/gumbel"
     local early late
     mapfile -t early < <(models 1m)
     mapfile -t late < <(models 3m)

@@ -74,7 +74,7 @@ write_rows(gumbel / "runs.csv", rows)
 EOF
     "$PY" benchmarks/compare_arms.py --out "$DOCS/gumbel" \
         "mshg-gumbel=$DOCS/gumbel/runs.csv:mshg-gumbel" "mshg-no-gumbel=$DOCS/gumbel/runs.csv:mshg-no-gumbel"
-    "$PY" benchmarks/learning_speed.py --out "$DOCS/gumbel" "$DOCS/gumbel/runs.csv" --at 1000000 3000000 \
+    "$PY" benchmarks/learning_speed.py --out "$DOCS/gumbel" "$DOCS/gumbel/runs.csv" --at 500000 1000000 \
         --thresholds 10 20
 }
 

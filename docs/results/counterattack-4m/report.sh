@@ -13,6 +13,7 @@
 # the decision rule leaves it), table.md and aggregate.md as the benchmark reports them, evaluation_curves.md and
 # curves_full.png (success, goal difference and episode length per run; Table 1 dashed), learning_speed.md and
 # curves_seeds.png (success at 1M-4M, the first env steps at 5%, 10%, 20% success).
+# runs/ is in .gitignore (for run folders made elsewhere): add the copied run files with git add -f.
 set -euo pipefail
 RESULTS="${COUNTER_RESULTS:-$HOME/saeir-results/counterattack-4m}"
 DOCS="${COUNTER_DOCS:-docs/results/counterattack-4m}"

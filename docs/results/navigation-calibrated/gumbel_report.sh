@@ -17,6 +17,7 @@
 # 6-8 of each arm, 32 Gumbel draws per state, one rollout of the run's 128 games (gumbel/critic_diagnostics.md).
 # rise: benchmarks/bonus_rise.py on the final models of the calibrated full-budget runs that exist (nav-calibrated)
 # and on the 3M models of seeds 6-8 of each arm (bonus_rise.md).
+# runs/ is in .gitignore (for run folders made elsewhere): add the copied run files with git add -f.
 set -euo pipefail
 RESULTS="${GUMBEL_RESULTS:-$HOME/saeir-results/gumbel}"
 NAV_RESULTS="${NAV_RESULTS:-$HOME/saeir-results/nav-calibrated}"

@@ -14,6 +14,7 @@
 # mappo seed 1), its table.md (the benchmark's table) and evaluations.md (coverage, success and collision steps at every evaluation), then
 # evaluation_curves.md and curves_full.png of the finished runs (finished.csv: final, best and plateau within 2 points
 # of coverage, success, per run; the random floor; Table 1's values).
+# runs/ is in .gitignore (for run folders made elsewhere): add the copied run files with git add -f.
 set -euo pipefail
 RESULTS="${NAV_RESULTS:-$HOME/saeir-results/nav-calibrated}"
 DOCS="${NAV_DOCS:-docs/results/navigation-calibrated}"

@@ -21,22 +21,12 @@ STAGE_F="${STAGE_F_DOCS:-docs/results/football-stage-f}/counterattack/runs.csv"
 PY="${PYTHON:-python}"
 TASK=grf-counterattack-easy
 
-copy_bonus() {  # $1: a SAEIR_PPO run folder, $2: its folder here
-    "$PY" benchmarks/bonus_files.py "$1" "$2" --window 250000 --name bonus_by_250k.md
-}
-
 copy_runs() {
-    local run algo target name
+    local run
     for run in "$RESULTS"/runs/*/"${TASK}"_s*; do
         [ -f "$run/spec.json" ] && [[ "$run" != *.replaced-* ]] || continue
-        algo="$(basename "$(dirname "$run")")"
-        target="$DOCS/runs/$algo/$(basename "$run")"
-        mkdir -p "$target"
-        for name in spec.json evaluations.csv segments.json resume.log done.json; do
-            if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
-        done
-        if [ "$algo" = saeir_ppo ] && [ -f "$run/progress.csv" ]; then copy_bonus "$run" "$target"; fi
-        echo "copied $run -> $target ($([ -f "$run/done.json" ] && echo finished || echo "still training"))"
+        "$PY" benchmarks/copy_run_files.py "$run" "$DOCS/runs/$(basename "$(dirname "$run")")/$(basename "$run")" \
+            --bonus-window 250000 --bonus-name bonus_by_250k.md
     done
 }
 

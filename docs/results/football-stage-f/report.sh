@@ -18,25 +18,15 @@ DOCS="${STAGE_F_DOCS:-docs/results/football-stage-f}"
 PY="${PYTHON:-python}"
 COMMON=(--n-games 8 --eval-episodes 100 -params num_cpus:2 --num-threads 2 --jobs 1 --rliable --report-only)
 
-copy_bonus() {  # $1: a SAEIR_PPO run folder, $2: its folder here
-    "$PY" benchmarks/bonus_files.py "$1" "$2" --window 250000 --name bonus_by_250k.md
-}
-
 copy_runs() {
-    local run folder algo target name copied=0
+    local run folder copied=0
     for run in "$RESULTS"/counterattack/runs/*/*_s* "$RESULTS"/3v1/runs/*/*_s*; do
         # finished runs only (a run that has not finished is lost with its machine); not the folders that the
         # benchmark's --rerun-changed moved aside
         [ -f "$run/done.json" ] && [[ "$run" != *.replaced-* ]] || continue
         folder="$(basename "$(dirname "$(dirname "$(dirname "$run")")")")"
-        algo="$(basename "$(dirname "$run")")"
-        target="$DOCS/$folder/runs/$algo/$(basename "$run")"
-        mkdir -p "$target"
-        for name in spec.json evaluations.csv segments.json resume.log done.json; do
-            if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
-        done
-        if [ "$algo" = saeir_ppo ]; then copy_bonus "$run" "$target"; fi
-        echo "copied $run -> $target"
+        "$PY" benchmarks/copy_run_files.py "$run" "$DOCS/$folder/runs/$(basename "$(dirname "$run")")/$(basename "$run")" \
+            --bonus-window 250000 --bonus-name bonus_by_250k.md
         copied=$((copied + 1))
     done
     echo "$copied finished runs copied from $RESULTS"

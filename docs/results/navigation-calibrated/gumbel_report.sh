@@ -35,15 +35,11 @@ finished_3m() {  # $1: a run folder; true when it finished its 3M agent-steps
 }
 
 copy_runs() {
-    local arm run target name copied=0
+    local arm run copied=0
     for arm in "${ARMS[@]}"; do
         for run in "$RESULTS/$arm/runs/mshg_only/${TASK}_s"*; do
             [ -d "$run" ] && [[ "$run" != *.replaced-* ]] && finished_3m "$run" || continue
-            target="$DOCS/gumbel/$arm/runs/mshg_only/$(basename "$run")"
-            mkdir -p "$target"
-            for name in spec.json evaluations.csv segments.json resume.log done.json; do
-                if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
-            done
+            "$PY" benchmarks/copy_run_files.py "$run" "$DOCS/gumbel/$arm/runs/mshg_only/$(basename "$run")"
             copied=$((copied + 1))
         done
     done

@@ -20,23 +20,13 @@ RESULTS="${NAV_RESULTS:-$HOME/saeir-results/nav-calibrated}"
 DOCS="${NAV_DOCS:-docs/results/navigation-calibrated}"
 PY="${PYTHON:-python}"
 
-copy_bonus() {  # $1: a SAEIR_PPO run folder, $2: its folder here
-    "$PY" benchmarks/bonus_files.py "$1" "$2" --window 2000000 --name bonus_by_2m.md
-}
-
 copy_runs() {
-    local run reading algo target name
+    local run reading
     for run in "$RESULTS"/*/runs/*/*_s*; do
         [ -f "$run/spec.json" ] && [[ "$run" != *.replaced-* ]] || continue
         reading="$(basename "$(dirname "$(dirname "$(dirname "$run")")")")"
-        algo="$(basename "$(dirname "$run")")"
-        target="$DOCS/runs/$algo-$reading/$(basename "$run")"
-        mkdir -p "$target"
-        for name in spec.json evaluations.csv segments.json resume.log done.json; do
-            if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
-        done
-        if [ "$algo" = saeir_ppo ] && [ -f "$run/progress.csv" ]; then copy_bonus "$run" "$target"; fi
-        echo "copied $run -> $target ($([ -f "$run/done.json" ] && echo finished || echo "still training"))"
+        "$PY" benchmarks/copy_run_files.py "$run" "$DOCS/runs/$(basename "$(dirname "$run")")-$reading/$(basename "$run")" \
+            --bonus-window 2000000 --bonus-name bonus_by_2m.md
     done
 }
 

@@ -12,11 +12,7 @@ PY="${PYTHON:-python}"
 
 for run in "$RESULTS"/cn-sparse-n*/runs/*/*_s*; do
     [ -f "$run/spec.json" ] || continue
-    target="$DOCS/runs/$(basename "$(dirname "$run")")/$(basename "$run")"
-    mkdir -p "$target"
-    for name in spec.json evaluations.csv segments.json resume.log done.json; do
-        if [ -f "$run/$name" ]; then cp "$run/$name" "$target/"; fi
-    done
+    "$PY" benchmarks/copy_run_files.py "$run" "$DOCS/runs/$(basename "$(dirname "$run")")/$(basename "$run")"
 done
 
 # runs.csv, table.md, aggregate.md: the finished runs (a done.json in their folder), as the benchmark reports them

@@ -130,7 +130,8 @@ def _format(value: float | None, digits: int = 0) -> str:
 
 
 def _millions(steps: float) -> str:
-    return f"{steps / 1e6:g}M"
+    """``steps`` in millions to four significant digits: ``0.5M``, ``1.002M`` for 1,001,600."""
+    return f"{steps / 1e6:.4g}M"
 
 
 def success_table(curves: dict[int, Curve], checkpoints: list[float], title: str) -> list[str]:

@@ -66,12 +66,12 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
 
 
 def format_steps(value: float, _position: Any = None) -> str:
-    """Axis label for a step count: ``0``, ``250k``, ``1.5M``."""
+    """Label for a step count, to four significant digits: ``0``, ``250k``, ``1.5M``, ``7M`` for 7,000,064."""
     if abs(value) >= 1e6:
-        return f"{value / 1e6:g}M"
+        return f"{value / 1e6:.4g}M"
     if abs(value) >= 1e3:
-        return f"{value / 1e3:g}k"
-    return f"{value:g}"
+        return f"{value / 1e3:.4g}k"
+    return f"{value:.4g}"
 
 
 def label_task_panel(axis: Any, task: str, title: str) -> None:

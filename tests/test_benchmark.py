@@ -45,7 +45,8 @@ def test_parse_seeds():
 def test_format_steps():
     assert [benchmark.format_steps(x) for x in (0, 500, 250_000, 1_000_000, 1_500_000)] == ["0", "500", "250k", "1M", "1.5M"]
     # an evaluation made at the end of the rollout that crossed 7M env steps reads 7M, not 7.00006M
-    assert [benchmark.format_steps(x) for x in (7_000_064, 12_250_000, 666_752, 1_001_600)] == ["7M", "12.25M", "666.8k", "1.002M"]
+    steps = (7_000_064, 12_250_000, 666_752, 1_001_600)
+    assert [benchmark.format_steps(x) for x in steps] == ["7M", "12.25M", "666.8k", "1.002M"]
 
 
 def test_csv_table_figure(finished):

@@ -39,7 +39,7 @@ def test_only_the_committed_files_are_copied(copy_run_files, tmp_path, capsys, f
 
 def test_a_folder_that_is_not_a_run_is_refused(copy_run_files, tmp_path):
     (tmp_path / "empty").mkdir()
-    with pytest.raises(SystemExit, match="is not a run folder \\(no spec.json\\)"):
+    with pytest.raises(SystemExit, match=r"is not a run folder \(no spec\.json\)"):
         copy_run_files.main([str(tmp_path / "empty"), str(tmp_path / "target")])
     assert not (tmp_path / "target").exists()
 

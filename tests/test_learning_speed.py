@@ -78,6 +78,26 @@ def test_earlier_test_against_brute_force(speed, first, second, share):
         assert p_value == pytest.approx(1 / 20)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_earlier_test_counts_equal_listing_every_split(speed, seed):
+    rng = np.random.default_rng(seed)
+    times = rng.choice([1.0, 2.0, 3.0, 5.0, math.inf], size=7)  # ties and censored seeds
+    first, second = list(times[:3]), list(times[3:])
+    _, p_value = speed.earlier_test(first, second)
+    assert p_value == pytest.approx(slow_earlier_p(first, second))
+
+
+def test_earlier_test_fifteen_seeds_each_is_exact(speed):
+    from scipy.stats import mannwhitneyu
+
+    rng = np.random.default_rng(0)
+    first, second = list(rng.normal(0.0, 1.0, 15)), list(rng.normal(0.5, 1.0, 15))  # no ties: scipy's exact law holds
+    observed, p_value = speed.earlier_test(first, second)
+    expected = mannwhitneyu(first, second, alternative="less", method="exact")
+    assert p_value == pytest.approx(expected.pvalue, rel=1e-9)
+    assert observed == pytest.approx(1.0 - expected.statistic / 225)  # scipy's U counts the pairs where first is above
+
+
 def test_report_end_to_end(speed, tmp_path, capsys):
     write_runs(
         tmp_path / "a.csv",

@@ -134,6 +134,9 @@ def arm_2b(label: str, name: str, summary: bool) -> Row:
     return Row(NAV3, label, (source,), RANDOM["mpe N=3"], paper, ARMS_2B, name, summary)
 
 
+# issue 51 part 2: the two MSHG-only arms over 15 seeds, as gumbel/comparison.md names and orders them
+GUMBEL = "navigation-calibrated/gumbel/runs.csv"
+GUMBEL_ARMS = (f"mshg-gumbel={GUMBEL}:mshg-gumbel", f"mshg-no-gumbel={GUMBEL}:mshg-no-gumbel")
 STAGE2 = "mappo sae_only mshg_only saeir_ppo"
 HISTORY = dict(paper=NONE, summary=False)
 STUDIES: dict[str, Study] = {
@@ -162,7 +165,7 @@ STUDIES: dict[str, Study] = {
             arm_2b("SAE-only, supplement bonus", "SAE-only (supplement)", True),
             arm_2b("SAEIR_PPO, supplement bonus", "SAEIR_PPO (supplement)", True),
             arm_2b("MSHG-only, team scale only", "MSHG-only (team scale)", True),
-            arm_2b("MSHG-only, no Gumbel noise", "MSHG-only (no Gumbel)", True),
+            arm_2b("MSHG-only, no Gumbel noise", "MSHG-only (no Gumbel)", False),  # in the 15 seeds of the next study
         ),
         checkpoints=(166_784, 500_000),
     ),
@@ -200,6 +203,10 @@ STUDIES: dict[str, Study] = {
         (
             Row(NAV3_FREE, "MAPPO", ("navigation-calibrated/runs.csv:mappo-no-penalty",), RANDOM["mpe N=3"], NONE),
             Row(NAV3_REACH, "MAPPO", ("navigation-calibrated/runs.csv:mappo-reach",), RANDOM["mpe N=3"], NONE),
+            *(
+                Row(NAV3, label, (f"{GUMBEL}:{arm}",), RANDOM["mpe N=3"], NONE, GUMBEL_ARMS, arm)
+                for label, arm in (("MSHG-only", "mshg-gumbel"), ("MSHG-only, no Gumbel noise", "mshg-no-gumbel"))
+            ),
         ),
         checkpoints=tuple(2e6 * k for k in range(10)),
     ),
@@ -415,7 +422,8 @@ def rows_table(study_rows: list[tuple[str, Row]], results: Path, summary: bool) 
 
 def checkpoints_table(name: str, results: Path, metric: str | None = None) -> list[str]:
     """Per row of the study: each seed's value at each checkpoint and at its last evaluation, with their mean (``-``:
-    a run ended before the checkpoint)."""
+    a run ended before the checkpoint). A row whose runs all end before the second checkpoint is left out: the table
+    follows the study's longer runs (``navigation-calibrated``: 20M env steps beside the 1M of its 15-seed arms)."""
     study = STUDIES[name]
     lines = ["| task | method | " + " | ".join(millions(c) for c in study.checkpoints) + " | final |"]
     lines.append("|---" * (len(study.checkpoints) + 3) + "|")
@@ -439,6 +447,8 @@ def checkpoints_table(name: str, results: Path, metric: str | None = None) -> li
                 continue
             text = ", ".join(f"{v:.{digits}f}" for v in found)
             cells.append(text if len(found) == 1 else f"{text} (mean {np.mean(found):.{digits}f})")
+        if len(study.checkpoints) > 1 and all(cell == "-" for cell in cells[1 : len(study.checkpoints)]):
+            continue
         lines.append(f"| {row.task} | {row.method} | " + " | ".join(cells) + " |")
     return lines
 

@@ -76,3 +76,13 @@ def test_every_study_has_a_page_in_the_summary_and_the_toctree(pages):
 def test_a_page_without_its_block_end_is_refused(pages, tmp_path):
     with pytest.raises(SystemExit, match="has no"):
         pages.rebuild("<!-- results_pages: rows football-3v1 -->\n| stale |\n", RESULTS)
+
+
+def test_checkpoint_tables_follow_the_longer_runs(pages):
+    # navigation-calibrated holds 20M-env-step runs and two 15-seed arms of 1M: the arms have rows, but no line in the
+    # table of coverage every 2M env steps, where every cell after 0 would be "-"
+    study = [("navigation-calibrated", row) for row in pages.STUDIES["navigation-calibrated"].rows]
+    methods = [line.split(" | ")[1] for line in pages.rows_table(study, RESULTS, summary=False)[2:]]
+    assert methods.count("MSHG-only") == 1 and "MSHG-only, no Gumbel noise" in methods
+    table = pages.checkpoints_table("navigation-calibrated", RESULTS)
+    assert [line.split(" | ")[1] for line in table[2:]] == ["MAPPO", "MAPPO"]

@@ -6,7 +6,7 @@ Copies from the run folder ``RUN`` into ``TARGET`` (made if missing) the files t
 those that exist: ``spec.json``, ``evaluations.csv``, ``segments.json``, ``resume.log``, ``done.json``
 (``docs/guide/training.md``, "The run folder"). Never checkpoints, models, ``progress.csv`` or the games' monitor
 file. A run still training is copied as far as it got. With ``--bonus-window``, a ``SAEIR_PPO`` run whose
-``progress.csv`` is there also gets its bonus files (``benchmarks/bonus_files.py``: ``bonus.md``, ``bonus.png`` and
+``progress.csv`` has logged a rollout also gets its bonus files (``benchmarks/bonus_files.py``: ``bonus.md``, ``bonus.png`` and
 the windowed table ``--bonus-name``). Prints one line: what was copied where, and whether the run had finished.
 """
 
@@ -19,6 +19,7 @@ from pathlib import Path
 
 import bonus_files
 
+from sb3_saeir.benchmark import read_rows
 from sb3_saeir.common.run_files import DONE_FILE, EVALUATIONS_FILE, PROGRESS_FILE, RESUME_LOG, SEGMENTS_FILE, SPEC_FILE
 
 COMMITTED_FILES = (SPEC_FILE, EVALUATIONS_FILE, SEGMENTS_FILE, RESUME_LOG, DONE_FILE)
@@ -41,6 +42,12 @@ def copy_run_files(run: Path, target: Path) -> list[str]:
     return copied
 
 
+def has_bonus_logs(run: Path) -> bool:
+    """Whether the run's ``progress.csv`` logged the SAEIR bonus yet (a run that just started has no rollout in it)."""
+    rows = read_rows(run / PROGRESS_FILE)
+    return any(row.get("rollout/intrinsic_reward_mean") not in (None, "") for row in rows)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="a benchmark run folder (with its spec.json)")
@@ -51,9 +58,12 @@ def main(argv: list[str] | None = None) -> int:
     copied = copy_run_files(args.run, args.target)
     algo = json.loads((args.run / SPEC_FILE).read_text()).get("algo")
     if args.bonus_window is not None and algo == "saeir_ppo" and (args.run / PROGRESS_FILE).is_file():
-        bonus_argv = [str(args.run), str(args.target), "--window", str(args.bonus_window), "--name", args.bonus_name]
-        bonus_files.main(bonus_argv)
-        copied += ["bonus.md", "bonus.png", args.bonus_name]
+        if has_bonus_logs(args.run):
+            bonus_argv = [str(args.run), str(args.target), "--window", str(args.bonus_window), "--name", args.bonus_name]
+            bonus_files.main(bonus_argv)
+            copied += ["bonus.md", "bonus.png", args.bonus_name]
+        else:
+            copied.append("no bonus files yet (no rollout logged)")
     state = "finished" if (args.run / DONE_FILE).is_file() else "still training"
     print(f"copied {args.run} -> {args.target} ({state}): {', '.join(copied)}")
     return 0

@@ -178,12 +178,17 @@ def task_section(
 
     _, title, _ = main_metric(task)
     end = min(curve[0][-1] for curves in by_algo.values() for curve in curves.values())
+    # the areas run to the shortest run's last evaluation: none while a run has only its evaluation at 0
+    with_areas = all(np.sum(curve[0] <= end) >= 2 for curves in by_algo.values() for curve in curves.values())
     lines = [f"## {task}", ""]
     for algo, curves in by_algo.items():
-        areas = [area_under_curve(curve, end) for curve in curves.values()]
         lines += [f"### {algo} (seeds {', '.join(str(s) for s in curves)})", ""]
         lines += [*success_table(curves, checkpoints, title), ""]
         lines += [*reach_table(curves, thresholds), ""]
+        if not with_areas:
+            lines += ["Area under the curve: none yet (a run has one evaluation so far).", ""]
+            continue
+        areas = [area_under_curve(curve, end) for curve in curves.values()]
         per_seed = ", ".join(f"s{seed} {area:.1f}" for seed, area in zip(curves, areas))
         lines += [
             f"Area under the curve up to {_millions(end)} env steps (mean {title}): {per_seed}; mean {np.mean(areas):.1f}.",
@@ -210,7 +215,7 @@ def task_section(
                 f"{label}| {title} at {_millions(checkpoint)} | {np.mean(a) - np.mean(b):+.1f} "  # type: ignore[arg-type]
                 f"| {statistic / (len(a) * len(b)):.0%} | {p_value:.3f} (two-sided) |"
             )
-        if first < second:
+        if first < second and with_areas:
             a_area = [area_under_curve(c, end) for c in a_curves.values()]
             b_area = [area_under_curve(c, end) for c in b_curves.values()]
             statistic, p_value = mann_whitney(a_area, b_area)

@@ -541,8 +541,11 @@ def rebuild(text: str, results: Path) -> tuple[str, list[str]]:
 
 
 def pages(docs: Path) -> list[Path]:
-    """The results pages: the summary and one page per study."""
-    return [docs / "results.md", *(docs / "results" / f"{name}.md" for name in STUDIES)]
+    """The results pages: the summary, one page per study, and any other page under ``results/`` with a generated
+    block (a study still running copies its report's tables before it has rows)."""
+    studies = [docs / "results" / f"{name}.md" for name in STUDIES]
+    others = [page for page in sorted((docs / "results").glob("*.md")) if page not in studies and CLOSE in page.read_text()]
+    return [docs / "results.md", *studies, *others]
 
 
 def plot_navigation(results: Path, path: Path) -> None:
@@ -614,9 +617,10 @@ def main(argv: list[str] | None = None) -> int:
     results = args.docs / "results"
     chosen = pages(args.docs)
     if args.pages:
-        unknown = sorted(set(args.pages) - set(STUDIES))
+        known = {page.stem for page in chosen[1:]}
+        unknown = sorted(set(args.pages) - known)
         if unknown:
-            parser.error(f"no study {', '.join(unknown)}; studies: {', '.join(STUDIES)}")
+            parser.error(f"no study page {', '.join(unknown)}; pages: {', '.join(sorted(known))}")
         chosen = [args.docs / "results" / f"{name}.md" for name in args.pages]
     differing = []
     for page in chosen:

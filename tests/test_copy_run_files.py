@@ -56,3 +56,12 @@ def test_a_saeir_run_gets_its_bonus_files(copy_run_files, tmp_path):
     names = {path.name for path in target.iterdir()}
     assert {"spec.json", "evaluations.csv", "done.json", "bonus.md", "bonus.png", "bonus_by_50.md"} <= names
     assert not any(name.endswith(".zip") or name == "progress.csv" for name in names)
+
+
+def test_a_saeir_run_without_a_rollout_yet_gets_no_bonus_files(copy_run_files, tmp_path, capsys):
+    run = fake_run(tmp_path / "runs" / "saeir_ppo" / "cn-sparse-n3_s1", "saeir_ppo", finished=False)
+    (run / "progress.csv").write_text("time/total_timesteps,rollout/intrinsic_reward_mean\n")  # the header alone
+    target = tmp_path / "study"
+    assert copy_run_files.main([str(run), str(target), "--bonus-window", "50"]) == 0
+    assert not (target / "bonus.md").exists()
+    assert capsys.readouterr().out.rstrip().endswith("no bonus files yet (no rollout logged)")

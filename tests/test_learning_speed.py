@@ -98,6 +98,15 @@ def test_earlier_test_fifteen_seeds_each_is_exact(speed):
     assert observed == pytest.approx(1.0 - expected.statistic / 225)  # scipy's U counts the pairs where first is above
 
 
+def test_a_run_with_only_its_first_evaluation_has_no_area_yet(speed, tmp_path):
+    write_runs(tmp_path / "a.csv", "saeir_ppo", {1: [(0, 0.0)]})  # a run that has just started
+    write_runs(tmp_path / "b.csv", "mappo", {1: [(0, 0.0), (500_000, 0.1)]})
+    assert speed.main([str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--out", str(tmp_path / "out")]) == 0
+    text = (tmp_path / "out" / "learning_speed.md").read_text()
+    assert text.count("Area under the curve: none yet (a run has one evaluation so far).") == 2
+    assert "| area to" not in text
+
+
 def test_report_end_to_end(speed, tmp_path, capsys):
     write_runs(
         tmp_path / "a.csv",

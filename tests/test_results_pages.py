@@ -86,3 +86,22 @@ def test_checkpoint_tables_follow_the_longer_runs(pages):
     assert methods.count("MSHG-only") == 1 and "MSHG-only, no Gumbel noise" in methods
     table = pages.checkpoints_table("navigation-calibrated", RESULTS)
     assert [line.split(" | ")[1] for line in table[2:]] == ["MAPPO", "MAPPO"]
+
+
+def test_a_running_study_page_is_rebuilt_too(pages, tmp_path):
+    # a study still running (counterattack-4m) has no rows yet, only copies of its report's tables: it is a results
+    # page all the same, found by its generated blocks
+    assert RESULTS / "counterattack-4m.md" in pages.pages(DOCS)
+    docs = tmp_path / "docs"
+    shutil.copytree(RESULTS, docs / "results", ignore=shutil.ignore_patterns("*.png"))
+    shutil.copy(DOCS / "results.md", docs / "results.md")
+    running = docs / "results" / "running-study.md"
+    block = ["<!-- results_pages: copy football-probe/random_baseline.md -->", "| stale |", "<!-- /results_pages -->"]
+    running.write_text("\n".join(["# Running", "", *block, ""]))
+    assert pages.main(["--docs", str(docs), "--check"]) == 1
+    assert pages.main(["--docs", str(docs), "--pages", "running-study"]) == 0
+    assert "| stale |" not in running.read_text()
+    assert "grf-counterattack-easy | success | 500" in running.read_text()
+    assert pages.main(["--docs", str(docs), "--check"]) == 0
+    with pytest.raises(SystemExit):
+        pages.main(["--docs", str(docs), "--pages", "no-such-study"])

@@ -10,7 +10,8 @@
 # for SAEIR_PPO also bonus_by_250k.md (the bonus's fire rate and mean per scale and the critics' value-softmax
 # entropy, per 250k env steps, from the run's progress.csv) and bonus.md/bonus.png (the benchmark's --entropy-plot).
 # report: runs.csv here (every run's evaluations; MAPPO seed 1 from stage F's 2M run when it was not continued, as
-# the decision rule leaves it), table.md and aggregate.md as the benchmark reports them, evaluation_curves.md and
+# the decision rule leaves it), table.md and aggregate.md as the benchmark reports them, evaluations.md (every
+# evaluation: success, goal difference, episode length), evaluation_curves.md and
 # curves_full.png (success, goal difference and episode length per run; Table 1 dashed), learning_speed.md and
 # curves_seeds.png (success at 1M-4M, the first env steps at 5%, 10%, 20% success).
 # runs/ is in .gitignore (for run folders made elsewhere): add the copied run files with git add -f.
@@ -52,6 +53,18 @@ write_rows(docs / "runs.csv", rows)
 rows = read_rows(docs / "runs.csv")  # what the byte-for-byte test re-reports
 (docs / "table.md").write_text(table_markdown(rows))
 (docs / "aggregate.md").write_text(rliable_markdown(rows) + "\n" + pairwise_markdown(rows))
+lines = [
+    "Every evaluation (100 greedy episodes): success %, goal difference and episode length (steps), means per episode.",
+    "",
+    "| run | env steps | success % | goal difference | episode length |",
+    "|---|---|---|---|---|",
+]
+for row in sorted(rows, key=lambda row: (row["algo"], int(row["seed"]), int(row["env_steps"]))):
+    lines.append(
+        f"| {row['algo']} s{row['seed']} | {int(row['env_steps']):,} | {100 * float(row['success_mean']):.0f} "
+        f"| {float(row['goal_diff_mean']):+.2f} | {float(row['ep_len_mean']):.1f} |"
+    )
+(docs / "evaluations.md").write_text("\n".join(lines) + "\n")
 EOF
     "$PY" benchmarks/evaluation_curves.py --out "$DOCS" "$DOCS/runs.csv" --random-episodes 0 \
         --metrics success goal_diff ep_len --reference-label "paper 25M" \

@@ -19,7 +19,8 @@ fire rate (equal to the code bonus's), and the fire rate under three changes of 
 defaults as they are: the values in return space (what ``normalize_values=False`` would feed the bonus: the
 normalised values times the scale's ``ValueNorm`` standard deviation ``sigma``, printed), the values times 4 (a
 softmax temperature of 1/4; no such setting exists), and the window restarted at every episode start. A second table
-gives the mean normalised value at every fifth position of the window (and its last), the shape the rises come from.
+gives the mean normalised value at every fifth position of the window (about ten positions of a window longer than
+50 steps) and at its last, the shape the rises come from.
 """
 
 from __future__ import annotations
@@ -143,7 +144,7 @@ def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
                 f"| {row['fire_rate_episode_windows']:.4f} |"
             )
     n_steps = len(next(iter(next(iter(results.values())).values()))["profile"])
-    positions = sorted({*range(0, n_steps, 5), n_steps - 1})
+    positions = profile_positions(n_steps)
     lines += ["", f"| model | scale | {' | '.join(f'mean value at step {t}' for t in positions)} |"]
     lines.append("|---" * (2 + len(positions)) + "|")
     for name, scales in results.items():
@@ -152,6 +153,13 @@ def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
             cells = " | ".join(f"{profile[t]:+.3f}" if t < len(profile) else "-" for t in positions)
             lines.append(f"| {name} | {scale} | {cells} |")
     return "\n".join(lines) + "\n"
+
+
+def profile_positions(n_steps: int) -> list[int]:
+    """The window positions of the value profile: every fifth step of a window of up to 50 (navigation's 25), about
+    ten evenly spaced ones of a longer window (football's 200: every 20th), and always the last."""
+    stride = 5 if n_steps <= 50 else 5 * round(n_steps / 50)
+    return sorted({*range(0, n_steps, stride), n_steps - 1})
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -87,6 +87,12 @@ def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):
     assert len(rows) == 8 and rows[4].count(" | ") == 7  # the profile table: model, scale, positions 0-20 and 24
 
 
+def test_profile_positions(bonus_rise):
+    assert bonus_rise.profile_positions(25) == [0, 5, 10, 15, 20, 24]  # navigation's window
+    assert bonus_rise.profile_positions(200) == [*range(0, 200, 20), 199]  # football's: eleven columns, not 41
+    assert bonus_rise.profile_positions(3) == [0, 2]
+
+
 def test_models_without_spec_are_refused(bonus_rise, tmp_path, capsys):
     (tmp_path / "model.zip").write_bytes(b"")
     with pytest.raises(SystemExit):

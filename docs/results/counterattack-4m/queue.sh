@@ -7,6 +7,8 @@
 # benchmarks/compiled_update.py --algo saeir_ppo --task grf-counterattack-easy --n-games 8 --threads 2 --rounds 5).
 # From a worktree of a fixed commit; re-running resumes (football resumes approximately: its games restart from a
 # reset).
+# THREADS (default 2) is the learner's torch thread count: 1 while another job holds a core (two threads on one free
+# core stall each other; measured here beside a one-thread navigation job: 13 env steps/s with 2, see resume.log).
 #   git worktree add $HOME/saeir-football <commit> && bash docs/results/counterattack-4m/queue.sh saeir_ppo:1
 #   (decision rule, issue 52: if SAEIR_PPO reaches >= 5% success at an evaluation after 2M env steps, then
 #    queue.sh mappo:1 saeir_ppo:2)
@@ -16,7 +18,7 @@ PY=/work/main/.venv/bin/python
 export PYTHONPATH="$HOME/saeir-football"
 OUT="$HOME/saeir-results/counterattack-4m"
 COMMON=(--tasks grf-counterattack-easy -n 16000000 --eval-freq 1000000 --n-games 8 --eval-episodes 100
-        -params num_cpus:2 "compile:${COMPILE:-True}" --num-threads 2 --jobs 1 --rliable)
+        -params num_cpus:2 "compile:${COMPILE:-True}" --num-threads "${THREADS:-2}" --jobs 1 --rliable)
 echo "$(date -u +%FT%TZ) queue start (commit $(git rev-parse --short HEAD)): $*"
 for run in "$@"; do
     IFS=: read -r algo seed <<< "$run"

@@ -6,8 +6,9 @@ Copies from the run folder ``RUN`` into ``TARGET`` (made if missing) the files t
 those that exist: ``spec.json``, ``evaluations.csv``, ``segments.json``, ``resume.log``, ``done.json``
 (``docs/guide/training.md``, "The run folder"). Never checkpoints, models, ``progress.csv`` or the games' monitor
 file. A run still training is copied as far as it got. With ``--bonus-window``, a ``SAEIR_PPO`` run whose
-``progress.csv`` has logged a rollout also gets its bonus files (``benchmarks/bonus_files.py``: ``bonus.md``, ``bonus.png`` and
-the windowed table ``--bonus-name``). Prints one line: what was copied where, and whether the run had finished.
+``progress.csv`` has logged a rollout also gets its bonus files (``benchmarks/bonus_files.py``: ``bonus.md``,
+``bonus.png`` and the windowed table ``--bonus-name``). Prints one line: what was copied where, and whether the run
+had finished.
 """
 
 from __future__ import annotations

@@ -85,3 +85,17 @@ def finished_tiny_run(tmp_path_factory):
     from tests.run_folders import finished_run
 
     return finished_run(tmp_path_factory.mktemp("uninterrupted"))
+
+
+@pytest.fixture(scope="session")
+def tiny_saeir_benchmark_run(tmp_path_factory):
+    """A finished ``SAEIR_PPO`` benchmark run of 450 agent-steps (2 games, rollouts of 25 steps) with its
+    ``progress.csv``, made once per test process, for the scripts that read a run folder's bonus logs. Read it only
+    (``--entropy-plot`` writes its figure beside the logs, the same each time)."""
+    from sb3_saeir.benchmark import main as benchmark_main
+
+    out = tmp_path_factory.mktemp("saeir_benchmark")
+    argv = ["--algos", "saeir_ppo", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "450", "--n-games", "2"]
+    argv += ["--eval-freq", "450", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(out)]
+    assert benchmark_main(argv) == 0
+    return out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1"

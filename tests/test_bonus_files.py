@@ -3,19 +3,14 @@ windowed table with the value-softmax entropy)."""
 
 import pytest
 
-from sb3_saeir.benchmark import main as benchmark_main
-
 
 @pytest.fixture(scope="module")
 def bonus_files(load_benchmark_script):
     return load_benchmark_script("bonus_files")
 
 
-def test_files_of_a_benchmark_run(bonus_files, tmp_path):
-    argv = ["--algos", "saeir_ppo", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "450", "--n-games", "2"]
-    argv += ["--eval-freq", "450", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(tmp_path)]
-    assert benchmark_main(argv) == 0
-    run = tmp_path / "runs" / "saeir_ppo" / "cn-sparse-n3_s1"
+def test_files_of_a_benchmark_run(bonus_files, tiny_saeir_benchmark_run, tmp_path):
+    run = tiny_saeir_benchmark_run
     target = tmp_path / "study" / "run"
     assert bonus_files.main([str(run), str(target), "--window", "50", "--name", "bonus_by_50.md"]) == 0
     table = (target / "bonus.md").read_text().splitlines()

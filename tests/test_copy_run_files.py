@@ -4,8 +4,6 @@ import json
 
 import pytest
 
-from sb3_saeir.benchmark import main as benchmark_main
-
 
 @pytest.fixture(scope="module")
 def copy_run_files(load_benchmark_script):
@@ -44,11 +42,8 @@ def test_a_folder_that_is_not_a_run_is_refused(copy_run_files, tmp_path):
     assert not (tmp_path / "target").exists()
 
 
-def test_a_saeir_run_gets_its_bonus_files(copy_run_files, tmp_path):
-    argv = ["--algos", "saeir_ppo", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "450", "--n-games", "2"]
-    argv += ["--eval-freq", "450", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(tmp_path)]
-    assert benchmark_main(argv) == 0
-    run = tmp_path / "runs" / "saeir_ppo" / "cn-sparse-n3_s1"
+def test_a_saeir_run_gets_its_bonus_files(copy_run_files, tiny_saeir_benchmark_run, tmp_path):
+    run = tiny_saeir_benchmark_run
     target = tmp_path / "study" / "run"
     assert copy_run_files.main([str(run), str(target)]) == 0  # no window: no bonus files
     assert not (target / "bonus.md").exists()

@@ -23,7 +23,7 @@ check-codestyle:
 	$(PYTHON) -m ruff format --check $(LINT_PATHS)
 
 type:
-	$(PYTHON) -m mypy sb3_saeir
+	$(PYTHON) -m mypy sb3_saeir benchmarks examples
 
 missing-annotations:
 	$(PYTHON) -m mypy --disallow-untyped-defs --ignore-missing-imports sb3_saeir

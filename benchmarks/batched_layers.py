@@ -53,10 +53,10 @@ def time_ms(step: Callable[[], None], iterations: int, repeats: int) -> float:
 def stacked_block_parameters(blocks: list[FCBlock]) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
     """The blocks' Linear weights ``(K, in, out)`` and biases ``(K, 1, out)``, LayerNorm weights and biases
     ``(K, 1, out)``, as leaves that collect gradients (the layout a batched implementation would hold)."""
-    weight = th.stack([block[0].weight.t() for block in blocks]).detach().requires_grad_()  # (K, in, out)
-    bias = th.stack([block[0].bias for block in blocks]).unsqueeze(1).detach().requires_grad_()  # (K, 1, out)
-    gain = th.stack([block[2].weight for block in blocks]).unsqueeze(1).detach().requires_grad_()  # (K, 1, out)
-    shift = th.stack([block[2].bias for block in blocks]).unsqueeze(1).detach().requires_grad_()  # (K, 1, out)
+    weight = th.stack([block.linear.weight.t() for block in blocks]).detach().requires_grad_()  # (K, in, out)
+    bias = th.stack([block.linear.bias for block in blocks]).unsqueeze(1).detach().requires_grad_()  # (K, 1, out)
+    gain = th.stack([block.norm.weight for block in blocks]).unsqueeze(1).detach().requires_grad_()  # (K, 1, out)
+    shift = th.stack([block.norm.bias for block in blocks]).unsqueeze(1).detach().requires_grad_()  # (K, 1, out)
     return weight, bias, gain, shift
 
 
@@ -101,10 +101,10 @@ def compare_across_critics(rows: int, in_dim: int, hidden: int, iterations: int,
 def compare_edge_types(rows: int, hidden: int, iterations: int, repeats: int) -> None:
     blocks = [FCBlock(hidden, hidden) for _ in range(3)]
     raw_edges = th.randn(rows // 3, 3, hidden, requires_grad=True)  # (B, E, H): one input for every type
-    weight = th.cat([block[0].weight for block in blocks]).detach().requires_grad_()  # (T_K * H, H)
-    bias = th.cat([block[0].bias for block in blocks]).detach().requires_grad_()  # (T_K * H,)
-    gain = th.stack([block[2].weight for block in blocks]).detach().requires_grad_()  # (T_K, H)
-    shift = th.stack([block[2].bias for block in blocks]).detach().requires_grad_()  # (T_K, H)
+    weight = th.cat([block.linear.weight for block in blocks]).detach().requires_grad_()  # (T_K * H, H)
+    bias = th.cat([block.linear.bias for block in blocks]).detach().requires_grad_()  # (T_K * H,)
+    gain = th.stack([block.norm.weight for block in blocks]).detach().requires_grad_()  # (T_K, H)
+    shift = th.stack([block.norm.bias for block in blocks]).detach().requires_grad_()  # (T_K, H)
 
     def wide(x: th.Tensor) -> th.Tensor:
         return wide_blocks(x, weight, bias, gain, shift)

@@ -83,7 +83,8 @@ def football_shaped_env(n_games: int, seed: int) -> Any:
             reward = float(done and self._rng.random() < 0.3)
             obs = self._obs()
             result = (obs, dict.fromkeys(self.agents, reward), dict.fromkeys(self.agents, done))
-            truncations, infos = dict.fromkeys(self.agents, False), {a: {} for a in self.agents}
+            truncations = dict.fromkeys(self.agents, False)
+            infos: dict[str, dict] = {agent: {} for agent in self.agents}
             if done:
                 self.agents = []
             return (*result, truncations, infos)

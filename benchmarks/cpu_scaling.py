@@ -43,10 +43,12 @@ def matmul_work(units: int) -> None:
 def football_work(units: int) -> None:
     """``units`` x 20 random steps of one ``grf-3v1-keeper`` game in this process."""
     import numpy as np
+    from gymnasium import spaces
 
     from sb3_saeir import make_multiagent_vec_env
 
     env = make_multiagent_vec_env("grf-3v1-keeper", n_games=1, seed=0, num_cpus=0)
+    assert isinstance(env.action_space, spaces.Discrete)  # football's 19 actions
     rng = np.random.default_rng(0)
     env.reset()
     for _ in range(units * 20):

@@ -37,6 +37,7 @@ import time
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 
 from sb3_saeir import make_multiagent_vec_env
 from sb3_saeir.config import build_model, load_hyperparams
@@ -140,7 +141,8 @@ def random_stepping(
     rng = np.random.default_rng(seed)
     env.reset()
     vec_steps = 0
-    n_actions = env.action_space.n
+    assert isinstance(env.action_space, spaces.Discrete)  # football's 19 actions
+    n_actions = int(env.action_space.n)
     cpu_start, start = cpu_seconds(), time.perf_counter()
     if groups:
         slot_groups = env.sampling_groups

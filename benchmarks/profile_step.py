@@ -25,6 +25,7 @@ import torch as th
 from torch import nn
 from torch.profiler import ProfilerActivity, profile, record_function
 
+from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.config import build_model
 
 # modules timed one level below the policy's actor and critics (HypergraphScaleCritic's message-passing parts included)
@@ -97,8 +98,10 @@ def main() -> None:
     th.set_num_threads(args.threads)
 
     model, env, callbacks, _ = build_model(args.algo, args.task, n_games=args.n_games, seed=args.seed, device=args.device)
-    model.learn(model.n_steps * env.num_envs, callback=callbacks)  # warm-up: one rollout and one update
     policy = model.policy
+    if not isinstance(policy, MultiAgentActorCriticPolicy):
+        raise SystemExit(f"--algo {args.algo}: this script profiles the multi-agent policies (not {type(policy).__name__})")
+    model.learn(model.n_steps * env.num_envs, callback=callbacks)  # warm-up: one rollout and one update
     buffer = model.rollout_buffer
     device = policy.device
     activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if device.type == "cuda" else [])

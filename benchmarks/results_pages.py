@@ -107,10 +107,20 @@ NAV3, NAV3_FREE, NAV3_REACH, NAV4 = "N=3", "N=3, no penalty", "N=3, reach", "N=4
 THREE, COUNTER = "3 vs 1", "counterattack"
 
 
-def methods(task: str, sources: tuple[str, ...], algos: str, random: str, paper: str | None = None, **kwargs: Any):
-    """One :class:`Row` per method of ``algos`` (space-separated), its runs ``sources`` with ``{algo}`` filled in."""
+def methods(
+    task: str,
+    sources: tuple[str, ...],
+    algos: str,
+    random: str,
+    paper: str | None = None,
+    iqm_group: tuple[str, ...] = (),
+    summary: bool = True,
+) -> tuple[Row, ...]:
+    """One :class:`Row` per method of ``algos`` (space-separated), its runs ``sources`` with ``{algo}`` filled in; the
+    other parameters are :class:`Row`'s, the same for every method."""
     return tuple(
-        Row(task, NAMES[algo], tuple(s.format(algo=algo) for s in sources), random, paper, **kwargs) for algo in algos.split()
+        Row(task, NAMES[algo], tuple(s.format(algo=algo) for s in sources), random, paper, iqm_group, summary=summary)
+        for algo in algos.split()
     )
 
 
@@ -138,7 +148,6 @@ def arm_2b(label: str, name: str, summary: bool) -> Row:
 GUMBEL = "navigation-calibrated/gumbel/runs.csv"
 GUMBEL_ARMS = (f"mshg-gumbel={GUMBEL}:mshg-gumbel", f"mshg-no-gumbel={GUMBEL}:mshg-no-gumbel")
 STAGE2 = "mappo sae_only mshg_only saeir_ppo"
-HISTORY = dict(paper=NONE, summary=False)
 STUDIES: dict[str, Study] = {
     "navigation-5pct": Study(
         (
@@ -227,42 +236,48 @@ STUDIES: dict[str, Study] = {
                 ("cn-sparse-n3/runs.csv:{algo}",),
                 "mappo sn_mappo rnd elign mshg_only sae_only saeir_ppo",
                 RANDOM["mpe2 N=3"],
-                **HISTORY,
+                NONE,
+                summary=False,
             ),
             *methods(
                 "N=4, mpe2 world, 16 games",
                 ("cn-sparse-n4/runs.csv:{algo}",),
                 "mappo sn_mappo rnd elign saeir_ppo",
                 RANDOM["mpe2 N=4"],
-                **HISTORY,
+                NONE,
+                summary=False,
             ),
             *methods(
                 "N=3, mpe2 world, no penalty, 16 games",
                 ("cn-sparse-n3-no-collision-penalty/runs.csv:{algo}",),
                 "mappo ippo saeir_ppo",
                 RANDOM["mpe2 N=3"],
-                **HISTORY,
+                NONE,
+                summary=False,
             ),
             *methods(
                 "N=3, mpe2 world, no penalty, 128 games",
                 ("cn-sparse-n3-no-collision-penalty-g128/runs.csv:{algo}",),
                 "mappo ippo saeir_ppo",
                 RANDOM["mpe2 N=3"],
-                **HISTORY,
+                NONE,
+                summary=False,
             ),
             *methods(
                 "N=3, mpe2 world, no penalty, 128 games, seeds 2-3",
                 ("cn-sparse-n3-no-collision-penalty-g128-1m/runs.csv:{algo}",),
                 "mappo saeir_ppo",
                 RANDOM["mpe2 N=3"],
-                **HISTORY,
+                NONE,
+                summary=False,
             ),
             *methods(
                 "3 vs 1, 2 games",
                 ("grf-3v1-keeper/runs.csv:{algo}",),
                 "mappo saeir_ppo",
                 RANDOM["3v1"],
-                **HISTORY,
+                NONE,
+                summary=False,
             ),
         ),
     ),
@@ -441,8 +456,9 @@ def checkpoints_table(name: str, results: Path, metric: str | None = None) -> li
             by_seed[int(r["seed"])] = (np.append(steps, float(r["env_steps"])), np.append(values, r["_value"]))
         cells = []
         for checkpoint in (*study.checkpoints, None):
-            found = [curve[1][-1] if checkpoint is None else value_at(curve, checkpoint) for curve in by_seed.values()]
-            if any(v is None for v in found):
+            read = [curve[1][-1] if checkpoint is None else value_at(curve, checkpoint) for curve in by_seed.values()]
+            found = [float(v) for v in read if v is not None]
+            if len(found) < len(read):
                 cells.append("-")
                 continue
             text = ", ".join(f"{v:.{digits}f}" for v in found)

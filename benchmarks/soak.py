@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
 from sb3_saeir.experiment import Experiment
 
@@ -72,6 +73,7 @@ class SoakReport(BaseCallback):
     def report(self) -> None:
         policy = self.model.policy
         optimizer_state = [value for state in policy.optimizer.state_dict()["state"].values() for value in state.values()]
+        assert isinstance(self.model, OnPolicyAlgorithm)  # every method of the package
         buffer = self.model.rollout_buffer
         buffer_arrays = [buffer.observations, buffer.rewards, buffer.values, buffer.returns, buffer.advantages]
         buffer_arrays += [getattr(buffer, "intrinsic_rewards", np.zeros(1))]

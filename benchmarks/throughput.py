@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 import torch as th
+from stable_baselines3.common.vec_env import VecEnv
 
 PHASES = ("env", "inference", "update", "bonus")
 
@@ -158,7 +159,7 @@ def measure_method(
         return _random_stepping(task, n_games, iterations, seed, backend)
     timer = PhaseTimer(torch_device)
     _patch_bonus(timer)
-    env = None
+    env: VecEnv | None = None  # None: build_model makes the config's
     if backend is not None or num_cpus is not None:  # the env backend (native or SuperSuit) or worker processes asked for
         from sb3_saeir import make_multiagent_vec_env
         from sb3_saeir.config import load_hyperparams
@@ -243,7 +244,7 @@ def process_tree_cpu_seconds() -> float:
 def _random_stepping(task: str, n_games: int, iterations: int, seed: int, backend: str | None) -> dict:
     from sb3_saeir import make_multiagent_vec_env
 
-    env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, **({} if backend is None else {"backend": backend}))
+    env = make_multiagent_vec_env(task, n_games=n_games, seed=seed, backend=backend)
     rng = np.random.default_rng(seed)
     env.reset()
     n_vec_steps = 25 * iterations

@@ -58,9 +58,9 @@ def main() -> None:
 
     model = ALGOS[args.algo].load(args.model, device="cpu")
     episodes = {}
-    for name, policy in (("model", model), ("random", None)):
+    policies = {"model": model, "random": RandomMultiAgentPolicy(model.action_space, seed=args.seed)}
+    for name, policy in policies.items():
         env = make_multiagent_vec_env(args.task, n_games=min(10, args.episodes), seed=args.seed)  # same games for both
-        policy = policy if policy is not None else RandomMultiAgentPolicy(env.action_space, seed=args.seed)
         summary, episodes[name] = evaluate_multiagent_policy(policy, env, args.episodes, not args.stochastic, True)
         env.close()
         metrics = ", ".join(
@@ -79,7 +79,7 @@ def main() -> None:
     label = "coverage rate (final step)" if key == "coverage_rate" else "team return"
     fig, ax = plt.subplots(figsize=(6, 3.5), dpi=120)
     values = {name: np.array([episode[key] for episode in eps]) for name, eps in episodes.items()}
-    bins = np.histogram_bin_edges(np.concatenate(list(values.values())), bins=12)
+    bins = np.histogram_bin_edges(np.concatenate(list(values.values())), bins=12).tolist()  # shared by both histograms
     for name, color in (("model", "tab:blue"), ("random", "tab:red")):
         ax.hist(values[name], bins=bins, alpha=0.5, color=color, label=f"{name} (mean {values[name].mean():.3f})")
     ax.set_xlabel(label)
@@ -94,7 +94,8 @@ def main() -> None:
     progress = os.path.join(os.path.dirname(os.path.abspath(args.model)), "progress.csv")
     if os.path.exists(progress):
         columns = read_progress(progress)
-        names = [name for name in ("rollout/coverage_rate", "eval/coverage_rate", "rollout/ep_rew_mean") if name in columns]
+        preferred: tuple[str, ...] = ("rollout/coverage_rate", "eval/coverage_rate", "rollout/ep_rew_mean")
+        names = [name for name in preferred if name in columns]
         names += sorted(name for name in columns if name.startswith("rollout/intrinsic_fire_rate_"))
         fig, axes = plt.subplots(len(names), 1, figsize=(7, 2.2 * len(names)), dpi=120, sharex=True, squeeze=False)
         for ax, name in zip(axes[:, 0], names):

@@ -25,6 +25,7 @@ import numpy as np
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.callbacks import EpisodeMetricsCallback, episode_metric_means
@@ -194,6 +195,7 @@ def main() -> None:
 
     env = make_multiagent_vec_env(args.task, n_games=args.n_games, seed=args.seed)  # native engine for cn-sparse-*
     callbacks: list[BaseCallback] = []
+    model: OnPolicyAlgorithm
     if args.algo == "saeir_ppo":  # the paper's Cooperative Navigation settings are SAEIR_PPO's defaults
         model = SAEIR_PPO("MSHGPolicy", env, seed=args.seed)
         name = "SAEIR_PPO"

@@ -119,9 +119,9 @@ def main() -> None:
     model.learn(args.timesteps)
 
     results = {}
-    for name, policy in (("trained", model), ("random", None)):
+    policies = {"trained": model, "random": RandomMultiAgentPolicy(env.action_space, seed=args.seed)}
+    for name, policy in policies.items():
         eval_env = make_multiagent_vec_env(make_game, n_games=10, seed=10_000 + args.seed)
-        policy = policy if policy is not None else RandomMultiAgentPolicy(eval_env.action_space, seed=args.seed)
         results[name] = evaluate_multiagent_policy(policy, eval_env, n_episodes=args.eval_episodes)
         eval_env.close()
     env.close()

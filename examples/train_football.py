@@ -59,11 +59,11 @@ def main() -> None:
     )
     print(f"Training SAEIR_PPO on {args.task}: {env.n_games} games x {env.n_agents} agents, {args.timesteps:,} agent-steps")
     model.learn(args.timesteps, progress_bar=True)
+    policies = {"trained": model, "random": RandomMultiAgentPolicy(env.action_space, seed=args.seed)}
     env.close()
 
-    for name, policy in (("trained", model), ("random", None)):
+    for name, policy in policies.items():
         eval_env = make_multiagent_vec_env(args.task, n_games=1, seed=10_000 + args.seed)  # same episodes for both
-        policy = policy if policy is not None else RandomMultiAgentPolicy(eval_env.action_space, seed=args.seed)
         summary = evaluate_multiagent_policy(policy, eval_env, n_episodes=args.eval_episodes, deterministic=False)
         eval_env.close()
         print(

@@ -21,8 +21,8 @@ from typing import Any
 
 import yaml
 from stable_baselines3 import PPO
-from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
@@ -31,7 +31,7 @@ from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
 
 # Method name -> algorithm class. Baselines and ablations share MAPPO's machinery; their YAML says what differs.
-ALGOS: dict[str, type[BaseAlgorithm]] = {
+ALGOS: dict[str, type[OnPolicyAlgorithm]] = {
     "saeir_ppo": SAEIR_PPO,
     "mappo": MAPPO,
     "sn_mappo": MAPPO,
@@ -318,7 +318,7 @@ def build_model(
     seed: int | None = None,
     env: VecEnv | None = None,
     **model_kwargs: Any,
-) -> tuple[BaseAlgorithm, VecEnv, list[BaseCallback], dict[str, Any]]:
+) -> tuple[OnPolicyAlgorithm, VecEnv, list[BaseCallback], dict[str, Any]]:
     """Build a method's model on a task from its config entry.
 
     :param algo: method name (a key of :data:`ALGOS`)

@@ -10,7 +10,7 @@ bash scripts/install_football.sh || { echo "gfootball install failed (needed by 
 echo "== ruff"
 .venv/bin/ruff check sb3_saeir tests examples benchmarks || { echo "lint errors (ruff check) - fix them or run 'make format'"; exit 1; }
 echo "== mypy"
-.venv/bin/mypy sb3_saeir || { echo "type errors (mypy) - see above"; exit 1; }
+.venv/bin/mypy sb3_saeir benchmarks examples || { echo "type errors (mypy) - see above"; exit 1; }
 echo "== docs (sphinx, warnings as errors; internal links)"
 .venv/bin/python -m sphinx -W --keep-going -q -b html docs docs/_build/html \
     || { echo "docs build failed: Sphinx warnings above (make docs reproduces them)"; exit 1; }

@@ -72,11 +72,24 @@ class FCBlock(nn.Sequential):
         super().__init__(nn.Linear(in_dim, out_dim), nn.ReLU(), nn.LayerNorm(out_dim))
         self.out_dim = out_dim
 
+    @property
+    def linear(self) -> nn.Linear:
+        """The block's Linear layer (its first)."""
+        linear = self[0]
+        assert isinstance(linear, nn.Linear)
+        return linear
+
+    @property
+    def norm(self) -> nn.LayerNorm:
+        """The block's LayerNorm (its last)."""
+        norm = self[2]
+        assert isinstance(norm, nn.LayerNorm)
+        return norm
+
     def constant_output(self, *batch_shape: int) -> th.Tensor:
         """The output of a 1-output block for inputs of batch shape ``batch_shape``: the LayerNorm bias, broadcast."""
-        norm = self[2]
-        assert isinstance(norm, nn.LayerNorm) and norm.bias is not None
-        return norm.bias.expand(*batch_shape, 1)
+        assert self.norm.bias is not None
+        return self.norm.bias.expand(*batch_shape, 1)
 
     @property
     def is_constant(self) -> bool:

@@ -26,7 +26,7 @@ type:
 	$(PYTHON) -m mypy sb3_saeir benchmarks examples
 
 missing-annotations:
-	$(PYTHON) -m mypy --disallow-untyped-defs --ignore-missing-imports sb3_saeir
+	$(PYTHON) -m mypy --disallow-untyped-defs --ignore-missing-imports sb3_saeir benchmarks examples
 
 commit-checks: format type lint
 

@@ -17,13 +17,14 @@ from typing import Any
 import torch as th
 from gymnasium import spaces
 from mpe2 import simple_spread_v3
+from pettingzoo import ParallelEnv
 from stable_baselines3 import PPO
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 
-def dense_spread():
+def dense_spread() -> ParallelEnv:
     """Dense Cooperative Navigation with 3 agents, 25 steps, discrete actions."""
     return simple_spread_v3.parallel_env(N=3, max_cycles=25, continuous_actions=False)
 

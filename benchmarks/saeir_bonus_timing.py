@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -33,7 +34,7 @@ def quadratic_prefix_loop(values: np.ndarray) -> np.ndarray:
     return bonus
 
 
-def best_time(function, values: np.ndarray, repeats: int) -> float:
+def best_time(function: Callable[[np.ndarray], object], values: np.ndarray, repeats: int) -> float:
     times = []
     for _ in range(repeats):
         start = time.perf_counter()

@@ -68,7 +68,7 @@ class LineSpread(ParallelEnv):
         distances = np.abs(self.targets[:, None] - self.positions[None, :])  # (targets, agents)
         return int((distances.min(axis=1) < self.radius).sum())
 
-    def reset(self, seed: int | None = None, options: dict | None = None):
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, np.ndarray], dict[str, dict]]:
         if seed is not None:
             self.rng = np.random.default_rng(seed)
         self.agents = list(self.possible_agents)
@@ -77,7 +77,9 @@ class LineSpread(ParallelEnv):
         self.steps = 0
         return self._observations(), {agent: {} for agent in self.agents}
 
-    def step(self, actions: dict[str, int]):
+    def step(
+        self, actions: dict[str, int]
+    ) -> tuple[dict[str, np.ndarray], dict[str, float], dict[str, bool], dict[str, bool], dict[str, dict]]:
         moves = np.array([int(actions[agent]) - 1 for agent in self.possible_agents], dtype=np.float64)
         self.positions = np.clip(self.positions + 0.1 * moves, -1.0, 1.0)
         self.steps += 1

@@ -111,8 +111,20 @@ def test_silent_constructor_argument_refused(env, tiny_kwargs, kwargs, message):
     one_line(error, message)
 
 
-def test_value_clipping_off_value_accepted(env, tiny_kwargs):
+def test_value_clipping_off_value_accepted(env, tiny_kwargs, monkeypatch):
+    """``clip_range_vf=-1`` trains, and the value loss gets -1, which it reads as no clipping (tests/test_mappo.py)."""
+    import sb3_saeir.mappo.losses as losses
+
+    given = []
+    value_loss = losses.clipped_value_loss
+
+    def recording_value_loss(values, old_values, returns, clip_range_vf, *args):
+        given.append(clip_range_vf)
+        return value_loss(values, old_values, returns, clip_range_vf, *args)
+
+    monkeypatch.setattr(losses, "clipped_value_loss", recording_value_loss)
     SAEIR_PPO("MSHGPolicy", env, clip_range_vf=-1, **tiny_kwargs).learn(20)
+    assert given and set(given) == {-1}
 
 
 @pytest.mark.parametrize("total_timesteps", [0, -5, 2.5, "100"])

@@ -144,7 +144,7 @@ def test_interrupted_run_resumes_from_checkpoint(tmp_path, monkeypatch):
         return original(self)
 
     monkeypatch.setattr(MultiAgentEvalCallback, "evaluate", crash_on_third)
-    with pytest.raises(RuntimeError):
+    with pytest.raises(RuntimeError, match="machine went down"):
         execute_run(spec, str(folder))
     assert len(list(folder.glob("rl_model_*_steps.zip"))) == 2 and not (folder / "done.json").exists()  # the newest two
     monkeypatch.setattr(MultiAgentEvalCallback, "evaluate", original)

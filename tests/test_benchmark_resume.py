@@ -214,7 +214,7 @@ def test_lost_evaluation_is_redone_and_said(tmp_path, monkeypatch):
 
     folder = tmp_path / "killed"
     monkeypatch.setattr(BenchmarkEvalCallback, "evaluate", die_after_204)
-    with pytest.raises(RuntimeError):
+    with pytest.raises(RuntimeError, match="machine went down"):
         execute_run(spec, str(folder))
     assert [int(row["timesteps"]) for row in read_csv(folder / "evaluations.csv")] == [0, 102, 204]
     monkeypatch.setattr(BenchmarkEvalCallback, "evaluate", original)

@@ -57,9 +57,6 @@ def test_fire_rate_equals_the_code_bonus(bonus_rise):
         expected = np.count_nonzero(saeir_bonus(values)[2:]) / values[2:].size
         assert readings["fire_rate"] == pytest.approx(expected)
         assert readings["fire_rate_by_rise"] == pytest.approx(expected)
-        assert readings["fire_rate_return_space"] == pytest.approx(np.mean(saeir_bonus(3.0 * values)[2:] > 0))
-        assert readings["above_one"] == pytest.approx(np.mean(bonus_rise.rises(values)[2:] > 1.0))
-        assert readings["profile"] == pytest.approx(values.mean(axis=1))
     # step 6 rises 1.57 above the whole window's earlier values (not enough: only step 2 fires) but 3 above its own
     # episode's (steps 4-5), where it fires; of steps 2-7, one fires in the rollout's window and two in episode windows
     values = np.tile(np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 3.0, 0.0])[:, None], (1, 2))
@@ -67,6 +64,19 @@ def test_fire_rate_equals_the_code_bonus(bonus_rise):
     starts[4] = 1
     readings = bonus_rise.scale_readings(values, values, starts)
     assert readings["fire_rate"] == pytest.approx(1 / 6) and readings["fire_rate_episode_windows"] == pytest.approx(2 / 6)
+    # the rises of steps 2-7 by hand: 3 above log-mean-exp(0, 0) = 0, then v_t - log((k + m e^3) / t) with k zeros and
+    # m threes before step t
+    rises = [3.0, -np.log((2 + np.e**3) / 3), -np.log((3 + np.e**3) / 4), -np.log((4 + np.e**3) / 5)]
+    rises += [3.0 - np.log((5 + np.e**3) / 6), -np.log((5 + 2 * np.e**3) / 7)]
+    assert readings["n"] == 12 and readings["max"] == pytest.approx(3.0)
+    assert readings["above_one"] == pytest.approx(2 / 6)  # steps 2 and 6 (1.57)
+    assert readings["quantiles"][0] == pytest.approx(np.median(rises))
+    assert readings["profile"] == pytest.approx([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 3.0, 0.0])
+    # values x 4 (and the same in return space): step 2 still fires; step 6's second 12 raises the entropy of a window
+    # that the first 12 dominates, so it does not; appending a low value to such a window raises it too
+    readings = bonus_rise.scale_readings(values, 2.0 * values, starts)
+    assert readings["fire_rate_temperature"] == pytest.approx(1 / 6)
+    assert readings["fire_rate_return_space"] == pytest.approx(1 / 6)
 
 
 def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):

@@ -200,12 +200,15 @@ def test_chunk_replay_reproduces_rollout_values_and_log_probs():
     model.collect_rollouts(model.env, callback, model.rollout_buffer, model.n_steps)
     assert model.rollout_buffer.episode_starts[25].all()
     model.policy.set_training_mode(True)
+    n_minibatches = 0
     with th.no_grad():
         for samples in model.rollout_buffer.get(n_minibatches=3):
+            n_minibatches += 1
             values, log_prob, _ = model.policy.evaluate_actions(
                 samples.observations, samples.actions, samples.actor_states, samples.critic_states, samples.episode_starts
             )
             mask = samples.mask
             np.testing.assert_allclose(values[mask].numpy(), samples.old_values[mask].numpy(), atol=2e-5)
             np.testing.assert_allclose(log_prob[mask].numpy(), samples.old_log_prob[mask].numpy(), atol=2e-5)
+    assert n_minibatches == 3
     env.close()

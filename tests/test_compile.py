@@ -145,8 +145,10 @@ def test_no_recompilation_when_the_number_of_blocks_changes():
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=5, seed=0)
     model = MAPPO("MAPPOPolicy", env, seed=0, compile=True, **{**SMALL, "n_minibatches": 3})
     rollout = SMALL["n_steps"] * env.num_envs
+    before = compilation.compile_counters()
     model.learn(2 * rollout)
     after_two = compilation.compile_counters()
+    assert after_two["frames"] > before["frames"]  # the networks did compile (else the check below says nothing)
     model.learn(3 * rollout, reset_num_timesteps=False)
     assert compilation.compile_counters() == after_two
     env.close()

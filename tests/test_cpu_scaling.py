@@ -8,6 +8,7 @@ a bound on the speed-up (see the script's docstring: it measures the machine, on
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -49,7 +50,28 @@ def test_speed_up_closed_form(load_benchmark_script):
     assert cpu_scaling.speed_up(4, 2.0, 5.0) == pytest.approx(1.6)
 
 
-def test_work_units_scale_the_time(load_benchmark_script):
+def test_timed_runs_the_units_asked_and_measures_them(load_benchmark_script, monkeypatch):
     cpu_scaling = load_benchmark_script("cpu_scaling")
-    assert cpu_scaling.calibrate("python", 0.0) == 1
-    assert cpu_scaling.timed("python", 2) > 0
+    asked = []
+
+    def work(units):
+        asked.append(units)
+        time.sleep(0.01 * units)
+
+    monkeypatch.setitem(cpu_scaling.WORK, "python", work)
+    assert cpu_scaling.timed("python", 3) >= 0.03
+    assert asked == [3]
+
+
+def test_calibration_divides_the_target_by_one_unit(load_benchmark_script, monkeypatch):
+    cpu_scaling = load_benchmark_script("cpu_scaling")
+    timed_units = []
+
+    def one_unit_takes_10_ms(kind, units):
+        timed_units.append((kind, units))
+        return 0.01 * units
+
+    monkeypatch.setattr(cpu_scaling, "timed", one_unit_takes_10_ms)
+    assert cpu_scaling.calibrate("matmul", 0.5) == 50
+    assert cpu_scaling.calibrate("matmul", 0.004) == 1  # never less than one unit
+    assert timed_units == [("matmul", 1), ("matmul", 1)]

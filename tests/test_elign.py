@@ -146,7 +146,7 @@ def test_forward_model_loss_decreases_on_a_fixed_batch():
 
 
 def test_radius_needs_positions():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="position_fn is needed when obs_radius is set"):
         ElignCallback(obs_radius=0.5, position_fn=None)
     ElignCallback(obs_radius=None, position_fn=None)
 

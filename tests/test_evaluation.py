@@ -1,6 +1,7 @@
 """The random-policy reference and multi-agent evaluation."""
 
 import numpy as np
+import pytest
 from gymnasium import spaces
 
 from sb3_saeir import make_multiagent_vec_env
@@ -32,7 +33,10 @@ def test_random_policy_box_space_is_copied_and_seeded():
 
 def test_random_policy_on_sparse_navigation():
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=4, seed=0)
-    metrics = evaluate_multiagent_policy(RandomMultiAgentPolicy(env.action_space), env, n_episodes=8)
+    metrics, episodes = evaluate_multiagent_policy(RandomMultiAgentPolicy(env.action_space), env, 8, False, True)
+    assert metrics["n_episodes"] == 8 and len(episodes) == 8  # two 25-step episodes of each of the 4 games
+    assert [episode["l"] for episode in episodes] == [25] * 8
     assert 0.0 <= metrics["coverage_rate_mean"] <= 1.0
     assert 0.0 <= metrics["coverage_over_steps_mean"] <= 1.0
-    assert np.isfinite(metrics["ep_rew_mean"])
+    assert metrics["ep_rew_mean"] == pytest.approx(np.mean([episode["r"] for episode in episodes]))
+    assert metrics["coverage_rate_mean"] == pytest.approx(np.mean([episode["coverage_rate"] for episode in episodes]))

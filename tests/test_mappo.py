@@ -113,12 +113,23 @@ def test_joint_critic_sees_the_concatenation_and_gives_one_value_per_game():
 
 
 def test_own_observation_critic():
+    """Each agent's value is a function of its own observation alone: changing one agent's observation changes its
+    value and no other agent's, and every agent alone through the network gives its value."""
+    th.manual_seed(0)
     critic = RecurrentValueCritic(obs_dim=4, n_agents=3, critic_input="own", hidden_size=8)
-    obs = th.randn(1, 2, 3, 4)
+    obs = th.randn(1, 2, 3, 4)  # (T, G, N, d)
     values, _ = critic(obs, th.zeros(2, 3, 8), th.zeros(1, 2, 3))
-    # agent 0 of game 0 alone through the same network gives the same value
-    alone, _ = critic(obs[:, :1, :1].expand(1, 1, 3, 4).contiguous(), th.zeros(1, 3, 8), th.zeros(1, 1, 3))
-    assert th.allclose(values[0, 0, 0], alone[0, 0, 0], atol=1e-6)
+    assert len(th.unique(values)) == 6  # not one value per game, not a constant
+    for game in range(2):
+        for agent in range(3):
+            alone, _ = critic(obs[:, game, agent].expand(1, 1, 3, 4).contiguous(), th.zeros(1, 3, 8), th.zeros(1, 1, 3))
+            assert th.allclose(values[0, game, agent], alone[0, 0, 0], atol=1e-6)
+    for agent in range(3):
+        changed = obs.clone()
+        changed[:, :, agent] = th.randn(1, 2, 4)  # a new observation (a shift alone would vanish in the input LayerNorm)
+        new_values, _ = critic(changed, th.zeros(2, 3, 8), th.zeros(1, 2, 3))
+        moved = ~th.isclose(new_values, values, atol=1e-6)  # (1, G, N)
+        assert moved[..., agent].all() and not moved[..., [a for a in range(3) if a != agent]].any()
 
 
 @pytest.mark.parametrize("layers", [("output",), ("output", "hidden")])
@@ -157,6 +168,8 @@ def test_clipped_value_loss_hand_values():
     returns = th.tensor([0.0, 0.0, 1.0, 15.0])  # errors -3, 12, 0.1, 1; clipped errors -3, 12, 0.8, 14.8
     np.testing.assert_allclose(clipped_value_loss(values, old_values, returns, None), [4.5, 70.0, 0.005, 0.5], rtol=1e-6)
     np.testing.assert_allclose(clipped_value_loss(values, old_values, returns, 0.2), [4.5, 70.0, 0.32, 98.0], rtol=1e-6)
+    # -1 (the model's "value clipping off") is the unclipped loss
+    np.testing.assert_allclose(clipped_value_loss(values, old_values, returns, -1.0), [4.5, 70.0, 0.005, 0.5], rtol=1e-6)
     mse = clipped_value_loss(values, old_values, returns, 0.2, loss="mse")
     np.testing.assert_allclose(mse, [4.5, 72.0, 0.32, 109.52], rtol=1e-6)
 

@@ -21,5 +21,7 @@ def test_main_plays_the_episodes(random_baseline, capsys):
     assert random_baseline.main(["--tasks", "cn-sparse-n3", "--episodes", "8", "--games", "2"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 3 and lines[2].startswith("| cn-sparse-n3 | coverage_rate | 8 | ")
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as exit_info:
         random_baseline.main(["--episodes", "0"])
+    assert exit_info.value.code == 2
+    assert "--episodes and --games must be at least 1, got 0 and" in capsys.readouterr().err

@@ -88,7 +88,7 @@ def test_checkpoint_tables_follow_the_longer_runs(pages):
     assert [line.split(" | ")[1] for line in table[2:]] == ["MAPPO", "MAPPO"]
 
 
-def test_a_running_study_page_is_rebuilt_too(pages, tmp_path):
+def test_a_running_study_page_is_rebuilt_too(pages, tmp_path, capsys):
     # a study still running (counterattack-4m) has no rows yet, only copies of its report's tables: it is a results
     # page all the same, found by its generated blocks
     assert RESULTS / "counterattack-4m.md" in pages.pages(DOCS)
@@ -103,5 +103,7 @@ def test_a_running_study_page_is_rebuilt_too(pages, tmp_path):
     assert "| stale |" not in running.read_text()
     assert "grf-counterattack-easy | success | 500" in running.read_text()
     assert pages.main(["--docs", str(docs), "--check"]) == 0
-    with pytest.raises(SystemExit):
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_info:
         pages.main(["--docs", str(docs), "--pages", "no-such-study"])
+    assert exit_info.value.code == 2 and "no study page no-such-study; pages: " in capsys.readouterr().err

@@ -25,7 +25,7 @@ def test_bonus_shrinks_on_trained_states_and_stays_high_on_unseen_ones():
 
 
 def test_update_proportion_zero_is_rejected_and_partial_proportion_still_trains():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"update_proportion must be in \(0, 1\], got 0.0"):
         RNDCallback(update_proportion=0.0)
     th.manual_seed(0)
     states = np.random.default_rng(1).normal(size=(32, 4))
@@ -95,7 +95,7 @@ def test_joint_input_concatenates_a_games_agents_and_shares_the_bonus():
     individual = RNDCallback(input="agent", device="cpu").bonus_from_next_observations(next_obs, n_agents=3)
     assert individual.shape == (4, 6)
     assert not np.allclose(individual[:, 0], individual[:, 1])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="Unknown RND input 'global'"):
         RNDCallback(input="global")
 
 

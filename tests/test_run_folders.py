@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -85,8 +86,9 @@ def test_resume_by_a_wrong_path_is_refused_in_one_line(finished_tiny_run, tmp_pa
 SHORT = ["-n", "120", "--eval-freq", "0"]
 
 
-def test_a_run_that_claims_the_number_while_this_one_builds_gets_another(tmp_path, monkeypatch, capsys):
-    """Another command takes the next run number between this one's choice and its first write."""
+def test_a_run_started_while_this_one_builds_takes_the_next_number(tmp_path, monkeypatch, capsys):
+    """Another command starts while this one builds its model: it takes the next number, and this run's folder is
+    still this run's."""
     parent = tmp_path / "logs" / "mappo"
     build = Experiment.build
 
@@ -99,6 +101,29 @@ def test_a_run_that_claims_the_number_while_this_one_builds_gets_another(tmp_pat
     assert train_main(argv(tmp_path / "logs", *SHORT)) == 0, capsys.readouterr().err
     folders = {path.name: sorted(child.name for child in path.iterdir()) for path in parent.iterdir()}
     assert folders[f"{TASK}_2"] == [] and f"{TASK}.zip" in folders[f"{TASK}_1"]  # the other run's folder untouched
+
+
+def test_a_run_that_claims_the_number_between_choice_and_creation_gets_the_next(tmp_path, monkeypatch, capsys):
+    """Another command creates the run folder this one has just chosen, before this one creates it: this one takes the
+    next number and leaves the other's folder alone (os.mkdir, not mkdir(exist_ok=True))."""
+    import sb3_saeir.experiment as experiment_module
+
+    parent = tmp_path / "logs" / "mappo"
+    numbered_paths = experiment_module.numbered_paths
+    raced = []
+
+    def numbered_paths_then_another_run_claims(folder, prefix, suffix=""):
+        found = numbered_paths(folder, prefix, suffix)
+        if not raced and Path(folder) == parent:  # the run's choice of number, once
+            raced.append(max(found, default=0) + 1)
+            (parent / f"{prefix}{raced[0]}").mkdir()
+        return found
+
+    monkeypatch.setattr(experiment_module, "numbered_paths", numbered_paths_then_another_run_claims)
+    assert train_main(argv(tmp_path / "logs", *SHORT)) == 0, capsys.readouterr().err
+    assert raced == [1]
+    folders = {path.name: sorted(child.name for child in path.iterdir()) for path in parent.iterdir()}
+    assert folders[f"{TASK}_1"] == [] and f"{TASK}.zip" in folders[f"{TASK}_2"]
 
 
 def test_a_file_with_a_run_folders_name_is_passed_over(tmp_path, capsys):

@@ -112,6 +112,16 @@ class ToyMeetEnv(ParallelEnv):
         )
 
 
+class UnequalRewardsEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` whose agent ``i`` gets ``i + 1`` at every step: a step's team reward (the mean over the
+    agents) is 2 with 3 agents, the sum would be 6, the first agent's 1."""
+
+    def step(self, actions):
+        observations, _, terminations, truncations, infos = super().step(actions)
+        rewards = {agent: float(i + 1) for i, agent in enumerate(self.possible_agents)}
+        return observations, rewards, terminations, truncations, infos
+
+
 class JitteryMeetEnv(ToyMeetEnv):
     """:class:`ToyMeetEnv` whose steps take a random wall time (0-3 ms from the OS's entropy, not from any seed): games
     in worker processes then come back in an order that changes from run to run."""

@@ -38,6 +38,29 @@ def test_rollouts_do_not_train_and_statistics_count_the_bonus(bonus_readings):
     assert stats["supplement"]["all"]["fire_rate_by_step"][-1] == 0.0  # every rollout ends its episodes here
 
 
+def test_statistics_pool_windows_per_scale_by_hand(bonus_readings, monkeypatch):
+    """With the bonus stubbed to the values themselves: two windows of 2 steps, one series, scales team and group."""
+    monkeypatch.setattr(bonus_readings, "saeir_bonus", lambda values, variant, **kwargs: values)
+    first = np.array([[[0.5, 0.0]], [[0.0, 0.0]]])  # (T, E, K)
+    second = np.array([[[0.0, 0.0]], [[0.3, 0.2]]])
+    windows = [
+        {"values": values, "episode_starts": None, "last_values": None, "last_dones": None, "scales": ("team", "group")}
+        for values in (first, second)
+    ]
+    stats = bonus_readings.reading_statistics(windows, coef=2.0, reset_at_episode_start=False)
+    for reading in bonus_readings.READINGS:
+        team, group, every = stats[reading]["team"], stats[reading]["group"], stats[reading]["all"]
+        # team: step 0 fires 1.0 in the first window, step 1 fires 0.6 in the second
+        assert team["fire_rate"] == pytest.approx(0.5) and team["fired_mean"] == pytest.approx(0.8)
+        np.testing.assert_allclose(team["fire_rate_by_step"], [0.5, 0.5])
+        np.testing.assert_allclose(team["fired_mean_by_step"], [1.0, 0.6])
+        # group: only step 1 of the second window, 0.4
+        assert group["fire_rate"] == pytest.approx(0.25) and group["fired_mean"] == pytest.approx(0.4)
+        np.testing.assert_allclose(group["fired_mean_by_step"], [np.nan, 0.4])
+        # every scale of every window: 3 of 8, mean of 1.0, 0.6, 0.4
+        assert every["fire_rate"] == pytest.approx(3 / 8) and every["fired_mean"] == pytest.approx(2.0 / 3)
+
+
 def test_main_on_a_benchmark_model(bonus_readings, tmp_path, capsys):
     argv = ["--algos", "sae_only", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "300", "--n-games", "2"]
     argv += ["--eval-freq", "300", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(tmp_path)]

@@ -7,6 +7,7 @@ from sb3_saeir.common.vec_env.base import (
     is_multiagent_vec_env,
     joint_observation_space,
 )
+from sb3_saeir.common.vec_env.black_death import BlackDeathWrapper, black_death
 from sb3_saeir.common.vec_env.factory import VEC_ENV_BACKENDS, make_multiagent_vec_env
 from sb3_saeir.common.vec_env.game_checks import (
     AgentDeathError,
@@ -27,6 +28,7 @@ __all__ = [
     "EPISODE_METRICS_KEY",
     "VEC_ENV_BACKENDS",
     "AgentDeathError",
+    "BlackDeathWrapper",
     "CheckedParallelEnv",
     "GameFaultError",
     "GameWorkerError",
@@ -38,6 +40,7 @@ __all__ = [
     "NonFiniteValueError",
     "ParallelEnvFactory",
     "RawStep",
+    "black_death",
     "check_action_space",
     "check_finite",
     "check_parallel_env",

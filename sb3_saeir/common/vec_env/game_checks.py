@@ -39,15 +39,16 @@ class GameFaultError(ValueError):
 
 
 class AgentDeathError(GameFaultError, RuntimeError):
-    """Raised when agents of a game leave it before the game ends (not supported without ``black_death``)."""
+    """Raised when agents of a game leave it before the game ends (wrap the game with
+    :func:`~sb3_saeir.common.vec_env.black_death`)."""
 
 
 class CheckedParallelEnv(BaseParallelWrapper):
     """Parallel-env wrapper that checks what one game returns, the same way in this process and in the env workers.
 
     Every agent must be there in every step (SuperSuit's ``MarkovVectorEnv`` needs it; an env whose agents can die is
-    wrapped with ``supersuit.black_death_v3`` first, else :class:`AgentDeathError`). A missing or non-numeric
-    observation or reward, or an observation of another shape or dtype than declared, is refused with a
+    wrapped with :func:`~sb3_saeir.common.vec_env.black_death` first, else :class:`AgentDeathError`). A missing or
+    non-numeric observation or reward, or an observation of another shape or dtype than declared, is refused with a
     :class:`GameFaultError` naming the env, the game, the agent and the step of its episode; a huge reward and agents
     done while others continue are warned about once. ``agents`` are given in ``possible_agents`` order whatever order
     the game lists them in.
@@ -93,8 +94,8 @@ class CheckedParallelEnv(BaseParallelWrapper):
             missing = sorted(set(self.env.possible_agents) - remaining)
             raise AgentDeathError(
                 f"{self._where()}: agents {missing} left the game before it ended. make_multiagent_vec_env needs every "
-                "agent in every step: wrap the parallel env with supersuit.black_death_v3(env) so that finished agents "
-                "receive zero observations and rewards until the game ends."
+                "agent in every step: wrap the parallel env with sb3_saeir.common.vec_env.black_death(env) so that "
+                "finished agents receive zero observations and rewards until the game ends."
             )
         self._check_observations(observations)
         values = self._check_rewards(rewards)
@@ -138,7 +139,7 @@ class CheckedParallelEnv(BaseParallelWrapper):
             agent = next(agent for agent in possible if agent not in observations)
             raise GameFaultError(
                 f"{self._where(agent)}: no observation; every agent of possible_agents needs one in every reset and "
-                "step (supersuit.black_death_v3 for finished agents)."
+                "step (sb3_saeir.common.vec_env.black_death for finished agents)."
             )
         for agent in possible:
             observation = np.asarray(observations[agent])
@@ -171,7 +172,7 @@ class CheckedParallelEnv(BaseParallelWrapper):
         except KeyError as error:
             raise GameFaultError(
                 f"{self._where(error.args[0])}: no reward; every agent of possible_agents needs one in every step "
-                "(0.0 when it earned nothing; supersuit.black_death_v3 for finished agents)."
+                "(0.0 when it earned nothing; sb3_saeir.common.vec_env.black_death for finished agents)."
             ) from None
         if values.dtype.kind not in NUMBER_KINDS or values.shape != (len(possible),):
             for agent in possible:
@@ -207,7 +208,8 @@ class CheckedParallelEnv(BaseParallelWrapper):
                 warnings.warn(
                     f"{self._game_name()}: agents {sorted(done, key=str)} are done while others continue; "
                     "the game's slots are reset together only when every agent is done, so a done agent's slot "
-                    "keeps stepping: end all agents of a game together (or wrap with supersuit.black_death_v3).",
+                    "keeps stepping: end all agents of a game together (or wrap the game with "
+                    "sb3_saeir.common.vec_env.black_death).",
                     stacklevel=2,
                 )
 

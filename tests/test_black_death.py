@@ -101,3 +101,18 @@ def test_an_observation_space_that_is_not_a_box_is_refused():
     with pytest.raises(TypeError, match="agent 'agent_0' observes a Discrete, not a Box"):
         black_death(Discrete())
     assert isinstance(black_death(FinishingAgentsEnv()), BlackDeathWrapper)
+
+
+def test_supersuit_black_death_is_warned_about():
+    import warnings
+
+    import supersuit as ss
+
+    with pytest.warns(
+        UserWarning, match=r"black_death_v3.*ends a step late. Wrap it with sb3_saeir.common.vec_env.black_death"
+    ):
+        env = make_multiagent_vec_env(lambda: ss.black_death_v3(FinishingAgentsEnv()), n_games=1, seed=0)
+    env.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_multiagent_vec_env(lambda: black_death(FinishingAgentsEnv()), n_games=1, seed=0).close()

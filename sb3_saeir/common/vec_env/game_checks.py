@@ -311,7 +311,38 @@ def probe_game(env_fn: ParallelEnvFactory) -> ParallelEnv:
     game = env_fn()
     check_parallel_env(game)
     check_action_space("make_multiagent_vec_env", game.action_space(game.possible_agents[0]))
+    warn_late_black_death(game)
     return game
+
+
+# SuperSuit releases whose black_death_v3 ends a game only when its agents are terminated *and* truncated at once
+LATE_BLACK_DEATH_UP_TO = (3, 11, 0)
+
+
+def warn_late_black_death(game: Any) -> None:
+    """Warn when ``game`` is wrapped with the ``black_death_v3`` of SuperSuit 3.11.0 or older, which ends a game a step
+    late (``docs/guide/custom_env.md``, "Agents that finish early"); :func:`~sb3_saeir.common.vec_env.black_death`
+    ends it on time.
+
+    :param game: a game as the task factory returns it
+    """
+    layer, seen = game, set()
+    while layer is not None and id(layer) not in seen:
+        seen.add(id(layer))
+        if type(layer).__name__ == "black_death_par" and type(layer).__module__.startswith("supersuit."):
+            from importlib.metadata import version
+
+            release = tuple(int(part) for part in version("supersuit").split(".")[:3] if part.isdigit())
+            if release <= LATE_BLACK_DEATH_UP_TO:
+                warnings.warn(
+                    f"The game is wrapped with SuperSuit {version('supersuit')}'s black_death_v3, which ends a game only "
+                    "when its agents are terminated and truncated at once: a game whose agents terminate or are "
+                    "truncated is stepped once more with no agent left and ends a step late. Wrap it with "
+                    "sb3_saeir.common.vec_env.black_death instead.",
+                    stacklevel=3,
+                )
+            return
+        layer = vars(layer).get("env")  # the wrapped env of a wrapper (no attribute lookup through __getattr__)
 
 
 def check_vec_env_options(n_games: Any, num_cpus: Any, mark_truncation: Any, check_finite: Any) -> None:

@@ -4,7 +4,7 @@ LINT_PATHS = sb3_saeir/ tests/ examples/ benchmarks/
 .PHONY: install test pytest test-slow lint format check-codestyle type missing-annotations commit-checks quickstart docs docs-linkcheck ci clean
 
 install:
-	bash scripts/install.sh tests,zoo,plots,ray
+	bash scripts/install.sh tests,zoo,plots,ray,docs
 
 pytest test:
 	$(PYTHON) -m pytest -n 2 -q

@@ -179,7 +179,7 @@ INTRINSIC_REWARDS: dict[str, type[BaseCallback]] = {}
 def register_intrinsic_reward(name: str) -> Callable[[BonusClass], BonusClass]:
     """Class decorator: make an :class:`~sb3_saeir.intrinsic.IntrinsicRewardCallback` subclass available as
     ``MAPPO(..., intrinsic_reward=name)`` (and in configs), without editing the algorithm. Re-registering a name
-    replaces it, as :func:`register_task` does (``docs/guide/custom_env.md``, "Your own intrinsic reward")::
+    replaces it, as :func:`register_task` does (``docs/guide/examples.md``, "Your own intrinsic reward")::
 
         @register_intrinsic_reward("count")
         class CountBonus(IntrinsicRewardCallback): ...

@@ -31,7 +31,7 @@ MAX_ENGINE_SEED = 2_000_000_000  # gfootball draws its own seeds from [0, 2e9]
 INSTALL_HINT = (
     "Google Research Football (gfootball 2.10.2) is needed for the football (grf-*) tasks. Install it with "
     "`bash scripts/install_football.sh` (run as root: apt build dependencies, a 6-15 minute build of the engine, then "
-    "the `football` extra, i.e. `pip install 'sb3-saeir[football]'`). See the README, section 'Football'."
+    "the `football` extra, i.e. `pip install 'sb3-saeir[football]'`). See docs/guide/football.md."
 )
 
 

@@ -62,7 +62,7 @@ def register_packaged_tasks() -> None:
             kwargs={"scenario": scenario, "N": n_agents},
             main_metric="success",
             description=(
-                f"Google Research Football academy {title}, {n_agents} agents, <= 400 steps (needs the football extra)"
+                f"Google Research Football academy {title}, {n_agents} agents, <= 401 steps (needs the football extra)"
             ),
         )
 

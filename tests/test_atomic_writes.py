@@ -297,6 +297,24 @@ def test_model_save_keeps_sb3s_path_rules(tmp_path, env):
     assert not [path for path in tmp_path.rglob(".*")]
 
 
+def test_a_save_through_a_symbolic_link_writes_the_file_it_points_to(tmp_path, env):
+    """As ``open(link, "wb")`` (SB3's save) does: the link stays a link, and the file it points to gets the model."""
+    from sb3_saeir.common.atomic import atomic_write_text
+
+    (tmp_path / "models").mkdir()
+    target = tmp_path / "models" / "latest.zip"
+    target.write_bytes(b"")
+    link = tmp_path / "current.zip"
+    link.symlink_to(target)
+    MAPPO("MlpPolicy", env, n_steps=10, policy_kwargs=dict(hidden_size=8)).save(link)
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert zipfile.is_zipfile(target) and sorted(path.name for path in (tmp_path / "models").iterdir()) == ["latest.zip"]
+    dangling = tmp_path / "notes.txt"
+    dangling.symlink_to(tmp_path / "models" / "notes.txt")
+    atomic_write_text(dangling, "written through")
+    assert dangling.is_symlink() and (tmp_path / "models" / "notes.txt").read_text() == "written through"
+
+
 def test_args_file_is_still_plain_yaml(tmp_path):
     from sb3_saeir.run_record import save_run_config
 

@@ -94,6 +94,7 @@ def test_string_boolean_refused_by_callback():
 
 # ------------------------------------------------------------------------------------------------ silent acceptance
 BAD_CONSTRUCTOR = [
+    ({"use_sde": True}, "use_sde=True is not supported"),
     ({"clip_range_vf": -0.5}, "clip_range_vf=-0.5 is out of range"),
     ({"clip_range_vf": 0.0}, "clip_range_vf=0.0 is out of range"),
     ({"normalize_advantage": 1}, "normalize_advantage must be True or False"),
@@ -135,6 +136,16 @@ def test_learn_needs_positive_integer(env, tiny_kwargs, tmp_path, total_timestep
     one_line(error, "total_timesteps")
     assert not (tmp_path / "tb").exists()
     assert model.num_timesteps == 0
+
+
+def test_ppo_hyperparameters_that_turn_gsde_off_apply(env, tiny_kwargs):
+    model = SAEIR_PPO("MSHGPolicy", env, use_sde=False, sde_sample_freq=-1, **tiny_kwargs)
+    assert model.use_sde is False and model.sde_sample_freq == -1
+
+
+def test_learn_takes_a_whole_float_as_sb3_does(env, tiny_kwargs):
+    model = SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).learn(6e1)  # one rollout: 10 steps x 6 slots
+    assert model.num_timesteps == 60 and model._total_timesteps == 60 and isinstance(model._total_timesteps, int)
 
 
 LOAD_OVERRIDES = [

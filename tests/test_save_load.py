@@ -73,6 +73,27 @@ def test_loaded_model_continues_training_on_a_new_env(algo, env, tiny_kwargs, tm
     assert loaded.num_timesteps == 2 * 10 * env.num_envs
 
 
+def test_batch_size_keeps_its_meaning_on_another_number_of_games(tiny_kwargs, tmp_path):
+    """A 10-step rollout of 3 agents is split in blocks of 30 agent-samples: batch_size=30 is one block per minibatch
+    on 2 games (2 minibatches), on 4 games (4) and on 1 game (1); a saved n_minibatches=2 that 1 game cannot hold is
+    refused at load, in one line, not after a rollout."""
+    from sb3_saeir import make_multiagent_vec_env
+
+    two, four, one = (make_multiagent_vec_env("cn-sparse-n3", n_games=n, seed=0) for n in (2, 4, 1))
+    model = SAEIR_PPO("MSHGPolicy", two, seed=0, batch_size=30, **tiny_kwargs)
+    assert model.n_minibatches == 2
+    model.save(tmp_path / "batch.zip")
+    assert SAEIR_PPO.load(tmp_path / "batch.zip", env=four, device="cpu").n_minibatches == 4
+    loaded = SAEIR_PPO.load(tmp_path / "batch.zip", env=one, device="cpu")
+    assert loaded.n_minibatches == 1 and loaded.batch_size == 30
+    loaded.learn(10 * one.num_envs)
+    SAEIR_PPO("MSHGPolicy", two, seed=0, n_minibatches=2, **tiny_kwargs).save(tmp_path / "split.zip")
+    with pytest.raises(ValueError, match=r"n_minibatches=2 must be between 1 and the number of \(game, chunk\) blocks 1"):
+        SAEIR_PPO.load(tmp_path / "split.zip", env=one, device="cpu")
+    for env in (two, four, one):
+        env.close()
+
+
 def test_loading_onto_an_env_with_another_number_of_agents_is_refused(env, tiny_kwargs, tmp_path):
     from sb3_saeir import make_multiagent_vec_env
 

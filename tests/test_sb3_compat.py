@@ -66,3 +66,29 @@ def test_ppo_with_subprocess_games(num_cpus):
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, num_cpus=num_cpus)
     PPO("MlpPolicy", env, n_steps=25, batch_size=50, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[8])).learn(150)
     env.close()
+
+
+def test_callbacks_see_the_step_locals_sb3_gives_them(env, tiny_kwargs):
+    """A callback reading ``self.locals["actions"]`` (and ``clipped_actions``, ``values``, ``log_probs``), as SB3's
+    examples do, gets one row per agent slot; the actions are those the env stepped with."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from sb3_saeir import SAEIR_PPO
+
+    class StepLocals(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.seen = []
+
+        def _on_step(self):
+            seen = {key: self.locals[key] for key in ("actions", "clipped_actions", "values", "log_probs")}
+            self.seen.append({key: np.array(value) for key, value in seen.items()})
+            return True
+
+    callback = StepLocals()
+    SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs).learn(2 * env.num_envs, callback=callback)
+    first = callback.seen[0]
+    assert first["actions"].shape == (env.num_envs,) and np.array_equal(first["actions"], first["clipped_actions"])
+    assert set(first["actions"].tolist()) <= set(range(5))
+    assert first["values"].shape == (env.num_envs, 3) and first["log_probs"].shape == (env.num_envs,)
+    assert (first["log_probs"] <= 0).all()

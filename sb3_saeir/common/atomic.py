@@ -81,10 +81,13 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         with atomic_path("curve.png") as temp:
             figure.savefig(temp)
 
-    :param path: the file to write (its folder must exist)
-    :return: the temporary path (same folder, same suffix)
+    :param path: the file to write (its folder must exist); a symbolic link is written through, to the file it
+        points to, as ``open(path, "wb")`` would (the link stays a link)
+    :return: the temporary path (same folder as the file written, same suffix)
     """
     path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
     temp = _create_temp(path)
     try:
         yield temp

@@ -193,10 +193,12 @@ class RolloutCollector:
 
     Each step of all slots is stored, and the callbacks' ``on_step`` called, as SB3's ``collect_rollouts`` does: the
     callbacks' ``locals`` hold ``self`` (the algorithm), ``env``, ``callback``, ``rollout_buffer``,
-    ``n_rollout_steps``, ``n_steps``, ``step`` (the policy's :class:`PolicyStep`), ``new_obs``, ``rewards``, ``dones``
-    and ``infos``. The algorithm's ``num_timesteps`` counts agent-steps before each ``on_step``; its ``_last_obs``,
-    ``_last_episode_starts`` and ``_last_states`` follow the stored steps (``_last_obs`` is ``None`` after a
-    double-buffered rollout that was stopped or failed: the next ``learn`` resets the env).
+    ``n_rollout_steps``, ``n_steps``, ``step`` (the policy's :class:`PolicyStep`), ``actions`` (the policy's, one row
+    per slot), ``clipped_actions`` (as the env got them), ``values`` (``(slots, K)``, normalised, one column per critic
+    scale), ``log_probs``, ``new_obs``, ``rewards``, ``dones`` and ``infos``. The algorithm's ``num_timesteps``
+    counts agent-steps before each ``on_step``; its ``_last_obs``, ``_last_episode_starts`` and ``_last_states``
+    follow the stored steps (``_last_obs`` is ``None`` after a double-buffered rollout that was stopped or failed: the
+    next ``learn`` resets the env).
 
     :param owner: the algorithm (its policy, fixed during the rollout, and its counters: :class:`RolloutOwner`)
     :param env: the training env
@@ -268,6 +270,8 @@ class RolloutCollector:
         # the callbacks' locals, with the names SB3's collect_rollouts gives them (self: the algorithm)
         step_locals = {"self": owner, "env": self.env, "callback": callback, "n_steps": n_steps, "step": step}
         step_locals.update(rollout_buffer=self.rollout_buffer, n_rollout_steps=self.n_rollout_steps)
+        step_locals.update(actions=step.actions, clipped_actions=self._env_actions(step.actions))
+        step_locals.update(values=step.values, log_probs=step.log_probs)
         callback.update_locals({**step_locals, "new_obs": new_obs, "rewards": rewards, "dones": dones, "infos": infos})
         if not callback.on_step():
             return False

@@ -79,6 +79,9 @@ class MAPPO(OnPolicyAlgorithm):
     :param ent_coef: entropy coefficient
     :param vf_coef: value loss coefficient (per scale)
     :param max_grad_norm: gradient-norm clip of each network (actor, each critic)
+    :param use_sde: must be ``False``: generalized State-Dependent Exploration is not supported (SB3's ``PPO``
+        argument, taken so that PPO hyperparameters that set it off still apply)
+    :param sde_sample_freq: with ``use_sde=False`` it has no effect (SB3's ``PPO`` argument)
     :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None`` (blocks are split as evenly as possible)
     :param data_chunk_length: steps per recurrent training chunk (10)
     :param intrinsic_reward: ``None`` (default) for no bonus; ``"saeir"``, ``"rnd"`` or ``"elign"`` adds that
@@ -137,6 +140,8 @@ class MAPPO(OnPolicyAlgorithm):
         ent_coef: float = 0.01,
         vf_coef: float = 1.0,
         max_grad_norm: float = 10.0,
+        use_sde: bool = False,
+        sde_sample_freq: int = -1,
         n_minibatches: int = 1,
         data_chunk_length: int = 10,
         intrinsic_reward: str | None = None,
@@ -180,6 +185,12 @@ class MAPPO(OnPolicyAlgorithm):
             stats_window_size=stats_window_size,
         )
         check_bool(type(self).__name__, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
+        check_bool(type(self).__name__, use_sde=use_sde)
+        if use_sde:
+            raise ValueError(
+                f"{type(self).__name__}: use_sde=True is not supported: gSDE (generalized State-Dependent Exploration) "
+                "is not implemented; continuous actions use a diagonal Gaussian (policy_kwargs log_std_init sets its start)."
+            )
         if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
             check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
         # built once: the callback learn() adds (docs/guide/algorithms.md)
@@ -199,8 +210,8 @@ class MAPPO(OnPolicyAlgorithm):
             ent_coef=ent_coef,
             vf_coef=vf_coef,
             max_grad_norm=max_grad_norm,
-            use_sde=False,
-            sde_sample_freq=-1,
+            use_sde=use_sde,
+            sde_sample_freq=sde_sample_freq,
             rollout_buffer_class=rollout_buffer_class,
             rollout_buffer_kwargs=rollout_buffer_kwargs,
             stats_window_size=stats_window_size,
@@ -413,6 +424,8 @@ class MAPPO(OnPolicyAlgorithm):
             self.logger.record(f"train/advantage_weight_{scale}", float(np.mean(advantage_weights[scale])))
             explained = explained_variance(values[..., k].ravel(), returns[..., k].ravel())
             self.logger.record(f"train/explained_variance_{scale}", float(explained))
+        # SB3's key: every scale's values against its returns, pooled (one critic: its own explained variance)
+        self.logger.record("train/explained_variance", float(explained_variance(values.ravel(), returns.ravel())))
         self.logger.record("train/value_loss", float(sum(np.mean(value_losses[scale]) for scale in scales)))
         self.logger.record("train/entropy_loss", float(np.mean(entropy_losses)))
         self.logger.record("train/policy_gradient_loss", float(np.mean(pg_losses)))
@@ -458,6 +471,8 @@ class MAPPO(OnPolicyAlgorithm):
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfMAPPO:
+        if isinstance(total_timesteps, float) and total_timesteps.is_integer():
+            total_timesteps = int(total_timesteps)  # 1e6, as SB3 takes it (a fraction is refused below)
         checks.check_ranges(type(self).__name__, total_timesteps=total_timesteps)
         return super().learn(
             total_timesteps=total_timesteps,
@@ -497,13 +512,15 @@ class MAPPO(OnPolicyAlgorithm):
         return model
 
     def _apply_overrides(self, overrides: dict[str, Any]) -> None:
-        """After :meth:`load`, the constructor's checks that need the loaded model: the minibatch split of a
+        """After :meth:`load`, the constructor's checks that need the loaded model: the minibatch split again for a
         ``batch_size``, ``n_minibatches``, ``n_steps`` or ``data_chunk_length`` override (SB3 sets the attribute
-        only, so ``batch_size`` was ignored), and an intrinsic-reward override against the saved settings.
+        only, so ``batch_size`` was ignored) and for an env given to ``load`` (its number of games sets the rollout
+        that ``batch_size`` splits), and an intrinsic-reward override against the saved settings.
 
         :param overrides: the ``custom_objects`` and keyword arguments given to ``load``
         """
-        if checks.MINIBATCH_ARGUMENTS & set(overrides) and self.n_agents is not None:
+        resplit = checks.MINIBATCH_ARGUMENTS & set(overrides) or self.env is not None
+        if resplit and self.n_agents is not None:
             if "n_minibatches" in overrides and "batch_size" not in overrides:
                 self.batch_size = None  # as in the constructor: n_minibatches decides when batch_size is None
             self.n_minibatches = self._resolve_minibatches()

@@ -49,6 +49,8 @@ class SAEIR_PPO(MAPPO):
     :param ent_coef: entropy coefficient
     :param vf_coef: value loss coefficient (per scale)
     :param max_grad_norm: gradient-norm clip of each network (actor, each critic)
+    :param use_sde: must be ``False`` (generalized State-Dependent Exploration is not supported; SB3's ``PPO`` argument)
+    :param sde_sample_freq: no effect with ``use_sde=False`` (SB3's ``PPO`` argument)
     :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None`` (blocks are split as evenly as possible)
     :param data_chunk_length: steps per recurrent training chunk (10)
     :param intrinsic_reward: ``"saeir"`` (default) adds a :class:`~sb3_saeir.intrinsic.SAEIRCallback`; ``"rnd"`` and
@@ -100,6 +102,8 @@ class SAEIR_PPO(MAPPO):
         ent_coef: float = 0.01,
         vf_coef: float = 1.0,
         max_grad_norm: float = 10.0,
+        use_sde: bool = False,
+        sde_sample_freq: int = -1,
         n_minibatches: int = 1,
         data_chunk_length: int = 10,
         intrinsic_reward: str | None = "saeir",
@@ -136,6 +140,8 @@ class SAEIR_PPO(MAPPO):
             ent_coef=ent_coef,
             vf_coef=vf_coef,
             max_grad_norm=max_grad_norm,
+            use_sde=use_sde,
+            sde_sample_freq=sde_sample_freq,
             n_minibatches=n_minibatches,
             data_chunk_length=data_chunk_length,
             intrinsic_reward=intrinsic_reward,

@@ -82,7 +82,7 @@ def test_callbacks_see_the_step_locals_sb3_gives_them(env, tiny_kwargs):
 
         def _on_step(self):
             seen = {key: self.locals[key] for key in ("actions", "clipped_actions", "values", "log_probs")}
-            self.seen.append({key: np.array(value) for key, value in seen.items()})
+            self.seen.append({key: value.numpy() if hasattr(value, "numpy") else value.copy() for key, value in seen.items()})
             return True
 
     callback = StepLocals()

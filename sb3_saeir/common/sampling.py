@@ -120,7 +120,7 @@ class PolicyStep:
     obs: np.ndarray  # (rows, ...) the observations the policy acted on
     episode_starts: np.ndarray  # (rows,)
     states: MultiAgentStates  # the states before the step: actor (rows, H), critic (K, games, N, H)
-    actions: np.ndarray  # (rows, ...) as sent to the env
+    actions: np.ndarray  # (rows, ...) the policy's (the env gets them clipped to a Box action space)
     values: th.Tensor  # (rows, K) normalised
     log_probs: th.Tensor  # (rows,)
     new_states: MultiAgentStates  # the states after the step

@@ -471,7 +471,7 @@ class MAPPO(OnPolicyAlgorithm):
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfMAPPO:
-        if isinstance(total_timesteps, float) and total_timesteps.is_integer():
+        if isinstance(total_timesteps, float) and float(total_timesteps).is_integer():
             total_timesteps = int(total_timesteps)  # 1e6, as SB3 takes it (a fraction is refused below)
         checks.check_ranges(type(self).__name__, total_timesteps=total_timesteps)
         return super().learn(

@@ -10,13 +10,15 @@ import torch as th
 
 from sb3_saeir.common.hypergraph import SCALES
 
+# What to use instead of gSDE (SB3's use_sde), refused by the policies and by the algorithms alike.
+GSDE_UNSUPPORTED = "gSDE is not supported; continuous actions use a diagonal Gaussian (log_std_init sets its start)"
 # SB3 ActorCriticPolicy arguments these policies cannot honour, with what to use instead.
 _UNSUPPORTED_SB3_ARGUMENTS = {
     "net_arch": "the networks follow the paper's layout; set their width with hidden_size",
     "features_extractor_class": "observations go to the actor and critics as flat vectors; flatten them in the env "
     "(supersuit.flatten_v0)",
     "features_extractor_kwargs": "features extractors are not used; flatten observations in the env",
-    "use_sde": "gSDE is not supported; continuous actions use a diagonal Gaussian (log_std_init sets its start)",
+    "use_sde": GSDE_UNSUPPORTED,
 }
 # SB3 arguments accepted when their value does nothing here (SB3 passes them when it rebuilds a saved policy).
 _SB3_NOOP_VALUES: dict[str, tuple[Any, ...]] = {

@@ -120,7 +120,8 @@ class PolicyStep:
     obs: np.ndarray  # (rows, ...) the observations the policy acted on
     episode_starts: np.ndarray  # (rows,)
     states: MultiAgentStates  # the states before the step: actor (rows, H), critic (K, games, N, H)
-    actions: np.ndarray  # (rows, ...) the policy's (the env gets them clipped to a Box action space)
+    actions: np.ndarray  # (rows, ...) the policy's
+    env_actions: np.ndarray  # (rows, ...) as the env gets them: clipped to a Box action space (else ``actions``)
     values: th.Tensor  # (rows, K) normalised
     log_probs: th.Tensor  # (rows,)
     new_states: MultiAgentStates  # the states after the step
@@ -147,6 +148,7 @@ def join_steps(parts: list[PolicyStep]) -> PolicyStep:
         episode_starts=np.concatenate([part.episode_starts for part in parts]),
         states=join_states([part.states for part in parts]),
         actions=np.concatenate([part.actions for part in parts]),
+        env_actions=np.concatenate([part.env_actions for part in parts]),
         values=th.cat([part.values for part in parts]),
         log_probs=th.cat([part.log_probs for part in parts]),
         new_states=join_states([part.new_states for part in parts]),
@@ -249,7 +251,7 @@ class RolloutCollector:
         owner = self.owner
         for n_steps in range(self.n_rollout_steps):
             step = self._act(owner._last_obs, owner._last_states, owner._last_episode_starts)  # type: ignore[arg-type]
-            if not self._take_step(n_steps, step, *self.env.step(self._env_actions(step.actions))):
+            if not self._take_step(n_steps, step, *self.env.step(step.env_actions)):
                 return False
         return True
 
@@ -270,7 +272,7 @@ class RolloutCollector:
         # the callbacks' locals, with the names SB3's collect_rollouts gives them (self: the algorithm)
         step_locals = {"self": owner, "env": self.env, "callback": callback, "n_steps": n_steps, "step": step}
         step_locals.update(rollout_buffer=self.rollout_buffer, n_rollout_steps=self.n_rollout_steps)
-        step_locals.update(actions=step.actions, clipped_actions=self._env_actions(step.actions))
+        step_locals.update(actions=step.actions, clipped_actions=step.env_actions)
         step_locals.update(values=step.values, log_probs=step.log_probs)
         callback.update_locals({**step_locals, "new_obs": new_obs, "rewards": rewards, "dones": dones, "infos": infos})
         if not callback.on_step():
@@ -292,7 +294,7 @@ class RolloutCollector:
 
         def act_and_send(group: int, obs: np.ndarray, starts: np.ndarray, states: MultiAgentStates) -> None:
             step = streams.run(group, lambda: self._act(obs, states, starts))
-            base.step_group_async(group, self._env_actions(step.actions))  # the group's rows only
+            base.step_group_async(group, step.env_actions)  # the group's rows only
             in_buffer[group].append(step)
             sent[group] += 1
 
@@ -332,7 +334,10 @@ class RolloutCollector:
             obs_tensor = obs_as_tensor(obs, self.device)  # type: ignore[arg-type]
             starts = th.as_tensor(episode_starts, dtype=th.float32, device=self.device)
             actions, values, log_probs, new_states = self.policy(obs_tensor, states, starts)
-        return PolicyStep(obs, episode_starts, states, actions.cpu().numpy(), values, log_probs, new_states)
+        actions_array = actions.cpu().numpy()
+        return PolicyStep(
+            obs, episode_starts, states, actions_array, self._env_actions(actions_array), values, log_probs, new_states
+        )
 
     def _env_actions(self, actions: np.ndarray) -> np.ndarray:
         """The actions as sent to the env (clipped to a ``Box`` action space)."""

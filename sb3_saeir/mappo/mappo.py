@@ -30,6 +30,7 @@ from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, 
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
 from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
+from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
 from sb3_saeir.common.type_aliases import GroupedRecurrentSamples, MultiAgentStates
 from sb3_saeir.common.utils import check_bool, check_seed
@@ -187,10 +188,7 @@ class MAPPO(OnPolicyAlgorithm):
         check_bool(type(self).__name__, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
         check_bool(type(self).__name__, use_sde=use_sde)
         if use_sde:
-            raise ValueError(
-                f"{type(self).__name__}: use_sde=True is not supported: gSDE (generalized State-Dependent Exploration) "
-                "is not implemented; continuous actions use a diagonal Gaussian (policy_kwargs log_std_init sets its start)."
-            )
+            raise ValueError(f"{type(self).__name__}: use_sde=True is not supported: {GSDE_UNSUPPORTED}.")
         if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
             check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
         # built once: the callback learn() adds (docs/guide/algorithms.md)

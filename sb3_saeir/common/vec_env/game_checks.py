@@ -332,10 +332,10 @@ def warn_late_black_death(game: Any) -> None:
         if type(layer).__name__ == "black_death_par" and type(layer).__module__.startswith("supersuit."):
             from importlib.metadata import version
 
-            release = tuple(int(part) for part in version("supersuit").split(".")[:3] if part.isdigit())
-            if release <= LATE_BLACK_DEATH_UP_TO:
+            installed = version("supersuit")
+            if tuple(int(part) for part in installed.split(".")[:3] if part.isdigit()) <= LATE_BLACK_DEATH_UP_TO:
                 warnings.warn(
-                    f"The game is wrapped with SuperSuit {version('supersuit')}'s black_death_v3, which ends a game only "
+                    f"The game is wrapped with SuperSuit {installed}'s black_death_v3, which ends a game only "
                     "when its agents are terminated and truncated at once: a game whose agents terminate or are "
                     "truncated is stepped once more with no agent left and ends a step late. Wrap it with "
                     "sb3_saeir.common.vec_env.black_death instead.",

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from sb3_saeir.common.checks import MAX_TIMESTEPS, check_device
-from sb3_saeir.common.utils import check_seed, unwritable_folder
+from sb3_saeir.common.run_files import ARGS_FILE, SPEC_FILE
+from sb3_saeir.common.utils import MAX_SEED, check_seed, unwritable_folder
 from sb3_saeir.config import ALGOS, ConfigError, check_hyperparams, config_path, load_hyperparams, parse_params
 from sb3_saeir.envs import list_tasks
 
@@ -226,6 +227,28 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
 DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}
 
 
+def stored_record_seed(stored: dict[str, Any], folder: Path) -> int:
+    """The seed a run's settings record holds, refused when it is not a seed (missing, a bool, not an integer, out of
+    ``0 .. 2**32 - 1``): the record is damaged.
+
+    :param stored: the run's settings record (``spec.json``, or an older run's ``<task>/args.yml``)
+    :param folder: the run's folder
+    :raises ~sb3_saeir.config.ConfigError: naming the file, the value and the fix
+    """
+    seed = stored.get("seed", _MISSING)
+    if isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed <= MAX_SEED:
+        return seed
+    spec = folder / SPEC_FILE
+    record = spec if spec.is_file() else folder / str(stored.get("task")) / ARGS_FILE
+    shown = "missing" if seed is _MISSING else repr(seed)
+    raise ConfigError(
+        f"--resume: {record} is damaged (its seed is {shown}, not a seed 0 .. 2**32 - 1); restore it from a copy."
+    )
+
+
+_MISSING = object()  # stored_record_seed: a record without a seed
+
+
 def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
     """The seed of a resumed run: its record's; the command's ``--seed`` must be that seed, or left out (``None``), or
     -1 (``DRAW_SEED``, rl-zoo3's default).
@@ -233,9 +256,9 @@ def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
     :param seed: the command's ``--seed`` (``None``: not given)
     :param stored: the run's settings record
     :param folder: the run's folder
-    :raises ~sb3_saeir.config.ConfigError: when the command gives another seed
+    :raises ~sb3_saeir.config.ConfigError: when the command gives another seed, or the record's seed is not a seed
     """
-    stored_seed = int(stored["seed"])
+    stored_seed = stored_record_seed(stored, folder)
     if seed is not None and seed not in (stored_seed, DRAW_SEED):
         raise ConfigError(
             f"--resume: {folder} was made with --seed {stored_seed}, not --seed {seed}: a run goes on with its own seed. "

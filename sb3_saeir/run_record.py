@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import zipfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -24,10 +25,13 @@ from sb3_saeir.common.run_files import (
     CONFIG_FILE,
     DONE_FILE,
     LEGACY_CHECKPOINT,
+    MONITOR_PREFIX,
+    PROGRESS_FILE,
     RESUME_LOG,
     SPEC_FILE,
 )
 from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, utc_stamp
+from sb3_saeir.common.utils import unwritable_folder
 from sb3_saeir.config import ConfigError, load_hyperparams
 from sb3_saeir.experiment import numbered_paths
 
@@ -320,6 +324,45 @@ class RunLog:
             file.write(f"{utc_stamp()} {message}\n")
 
 
+# ---------------------------------------------------------------------------------------------------- writable
+# The files of a run folder that a run goes on writing in place (appended to, or opened for writing); the others are
+# replaced atomically, which needs the folder itself writable.
+WRITTEN_IN_PLACE = (RESUME_LOG, PROGRESS_FILE, f"{MONITOR_PREFIX}.monitor.csv")
+
+
+def unwritable_run_folder(folder: Path) -> str:
+    """What of a run folder a run that goes on in it could not write, or ``""``: the folder itself (a probe file,
+    :func:`~sb3_saeir.common.utils.unwritable_folder`), or one of :data:`WRITTEN_IN_PLACE`.
+
+    :param folder: the run's folder (it exists)
+    :return: one clause naming what cannot be written, or ``""``
+    """
+    problem = unwritable_folder(folder)
+    if problem:
+        return problem
+    for path in (folder / name for name in WRITTEN_IN_PLACE):
+        if path.exists() and not os.access(path, os.W_OK):
+            return f"{path} is not writable"
+    return ""
+
+
+def check_run_folder_writable(folder: Path, refused: str = "--resume", copy: str = "--resume the copy") -> None:
+    """Refuse to go on with the run in ``folder`` when it cannot be written (:func:`unwritable_run_folder`), before
+    anything is printed or written (a run printed ``Resuming ...``, then failed on ``resume.log``).
+
+    :param folder: the run's folder, locked
+    :param refused: what is refused, the start of the message (``"--resume"``, a benchmark run's name)
+    :param copy: how the command continues a copy of the run, for the fix
+    :raises ~sb3_saeir.config.ConfigError: one line naming the folder, what cannot be written and the fix
+    """
+    problem = unwritable_run_folder(folder)
+    if problem:
+        raise ConfigError(
+            f"{refused}: the run in {folder} cannot go on there ({problem}); make the folder and its files writable "
+            f"(e.g. chmod -R u+w {folder}), or copy the run to a folder you can write and {copy}."
+        )
+
+
 # ---------------------------------------------------------------------------------------------------- checkpoints
 def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
     """The resumable checkpoints of a run folder, by agent-steps: ``rl_model_<steps>_steps.zip``, and a benchmark
@@ -367,9 +410,10 @@ def newest_loading_checkpoint(folder: Path, final_model: Path | None = None) -> 
 
 def keep_damaged_checkpoints(skipped: list[tuple[Path, str]]) -> None:
     """Move checkpoints that do not load aside (``<name>.damaged-<UTC time>``; nothing deleted), so that the run's
-    next checkpoints do not sit beside them (a folder in a checkpoint's name is renamed aside whole)."""
+    next checkpoints do not sit beside them (a folder in a checkpoint's name is renamed aside whole, a link is renamed
+    itself: what it points to stays as it is)."""
     for path, _ in skipped:
-        if path.is_dir():
+        if path.is_dir() or path.is_symlink():
             path.rename(unused_name(path, "damaged"))
             continue
         keep_damaged(path)

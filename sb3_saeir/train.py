@@ -47,7 +47,7 @@ from sb3_saeir.experiment import (
     model_method_mismatch,
 )
 from sb3_saeir.run import Run, RunOutput, RunStoppedError
-from sb3_saeir.run_record import RunSpec, config_record, stored_record
+from sb3_saeir.run_record import RunSpec, check_run_folder_writable, config_record, stored_record
 
 __all__ = [
     "INTERRUPTED_EXIT_STATUS",
@@ -161,6 +161,7 @@ def train(args: argparse.Namespace) -> Path:
             return _execute(args, hyperparams, folder, seed)
     folder = find_run_folder(args.log_folder, args.algo, args.task, args.resume)
     with RunFolderLock(folder) as lock:  # before anything is read for the run or written
+        check_run_folder_writable(folder)
         stored = stored_record(folder, args.algo, args.task, legacy_train_record)
         return _execute(args, hyperparams, folder, resumed_seed(args.seed, stored, folder), stored, lock)
 
@@ -226,7 +227,37 @@ def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_t
         print(f"Resuming {run.folder} from {run.resume.checkpoint.name}: {remaining:,} agent-steps to go")
     elif args.n_timesteps is None:
         print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
+    note = budget_note(experiment, run, n_timesteps)
+    if note:
+        print(note)
     print(f"Log folder: {run.folder}")
+
+
+def budget_note(experiment: Experiment, run: Run, n_timesteps: int) -> str:
+    """The note of a budget that is not a whole number of rollouts: training stops at the end of the rollout that
+    reaches it, as SB3's ``learn`` does (``""`` when the budget ends a rollout).
+
+    :param experiment: the run's experiment, its model built
+    :param run: the run, its resume point found
+    :param n_timesteps: the run's budget in agent-steps
+    """
+    assert experiment.model is not None and experiment.env is not None
+    n_steps, n_games = int(getattr(experiment.model, "n_steps", 1)), experiment.n_games
+    n_agents = experiment.env.num_envs // n_games
+    rollout = n_steps * experiment.env.num_envs
+    if run.resume is not None:
+        start, target = run.resume.steps, run.resume.total_timesteps(n_timesteps)
+    else:
+        start = experiment.model.num_timesteps if run.continue_model else 0
+        target = start + n_timesteps
+    end = start + -(-(target - start) // rollout) * rollout  # the first rollout end at or past the target
+    if end == target:
+        return ""
+    return (
+        f"Note: the budget is not a whole number of rollouts (a rollout: {n_steps} steps x {n_games} games x {n_agents} "
+        f"agents = {rollout:,} agent-steps): the run stops at the end of the rollout that reaches it, after {end:,} "
+        "agent-steps."
+    )
 
 
 def build_model(experiment: Experiment, env: VecEnv, args: argparse.Namespace) -> None:

@@ -284,8 +284,10 @@ def test_model_save_keeps_sb3s_path_rules(tmp_path, env):
     with pytest.warns(UserWarning, match="does not exist. Will create it"):
         model.save(tmp_path / "new_folder" / "model")
     (tmp_path / "folder.zip").mkdir()
+    with pytest.raises(ValueError, match="is a folder; save to a file path"):  # SB3 saved to <path>_2, load(path) failed
+        model.save(tmp_path / "folder.zip")
     with pytest.warns(UserWarning, match="is a folder"):
-        model.save(tmp_path / "folder.zip")  # SB3 saves to <path>_2
+        save_model(model, tmp_path / "folder.zip")  # the helper for any SB3 model keeps SB3's rule: <path>_2
     with open(tmp_path / "object.zip", "wb") as file:  # a file object is written to directly
         model.save(file)
     assert save_model(model, tmp_path / "helper") == tmp_path / "helper.zip"

@@ -227,6 +227,9 @@ BAD_PREDICT = [
     ({"observation": np.zeros((6, 18)), "state": np.zeros((6, 5))}, "state of shape (6, 5)"),
     ({"observation": np.zeros((6, 18)), "state": np.zeros((4, 8))}, "state of shape (4, 8)"),
     ({"observation": np.zeros((6, 18)), "episode_start": np.zeros(4)}, "episode_start of shape (4,)"),
+    # NumPy cast these to float32: numeric strings without a word, complex numbers with its ComplexWarning only
+    ({"observation": np.full((6, 18), "0.5")}, "the observation must be an array of numbers, got dtype <U3"),
+    ({"observation": np.zeros((6, 18), np.complex64)}, "the observation must be an array of numbers, got dtype complex64"),
 ]
 
 
@@ -535,3 +538,80 @@ def test_compile_refusal_lists_the_backends_a_user_picks(env, tiny_kwargs):
     assert (
         MAPPO("MAPPOPolicy", env, compile="aot_eager_decomp_partition", **tiny_kwargs).compile == "aot_eager_decomp_partition"
     )
+
+
+# ------------------------------------------------------------------------------------------------ issue 55: load, save
+def test_load_of_a_model_of_another_library_names_it(env, tmp_path):
+    """SB3's ``Observation spaces do not match`` (with an env) or ``MAPPO needs an env`` (without) for an SB3 PPO zip."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    path = tmp_path / "ppo.zip"
+    PPO("MlpPolicy", gym.make("CartPole-v1"), n_steps=16, batch_size=16).save(path)
+    for kwargs in ({"env": env}, {}):
+        with pytest.raises(ValueError) as error:
+            MAPPO.load(path, **kwargs)
+        one_line(
+            error,
+            f"MAPPO.load: {str(path)!r} is a model of another library",
+            "stable_baselines3.common.policies.ActorCriticPolicy",
+            "load it with that library's algorithm class",
+        )
+
+
+def test_load_onto_an_env_of_another_number_of_agents_names_the_agents(env, tiny_kwargs, tmp_path):
+    """SB3 compared the observation spaces first: ``Observation spaces do not match: Box(..., (18,)) != (24,)``."""
+    path = tmp_path / "n3.zip"
+    MAPPO("MAPPOPolicy", env, **tiny_kwargs).save(path)
+    four = make_multiagent_vec_env("cn-sparse-n4", n_games=2, seed=0)
+    with pytest.raises(ValueError) as error:
+        MAPPO.load(path, env=four)
+    four.close()
+    one_line(error, "MAPPO: the model was built for 3 agents per game, the env has 4")
+
+
+@pytest.mark.parametrize("given", ["a.zip", "a"])
+def test_save_to_a_folder_and_load_of_a_folder_are_refused(model, tmp_path, given):
+    """SB3 warned and saved to ``a.zip_2``, which ``load("a.zip")`` did not read (``IsADirectoryError``)."""
+    folder = tmp_path / "a.zip"
+    folder.mkdir()
+    with pytest.raises(ValueError) as error:
+        model.save(tmp_path / given)
+    one_line(error, f"SAEIR_PPO.save: {str(folder)!r} is a folder; save to a file path such as", "a.zip/model.zip")
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["a.zip"] and not any(folder.iterdir())
+    with pytest.raises(IsADirectoryError) as error:
+        SAEIR_PPO.load(folder)
+    one_line(error, f"SAEIR_PPO.load: {str(folder)!r} is a folder, not a model zip", "a.zip/model.zip")
+
+
+def test_load_of_no_file_names_the_path_once(tmp_path):
+    """SB3 named the second path it tried: ``No such file or directory: '.../no_such.zip.zip'``."""
+    path = tmp_path / "no_such.zip"
+    with pytest.raises(FileNotFoundError) as error:
+        MAPPO.load(path)
+    assert str(error.value) == f"MAPPO.load: no such file {str(path)!r}."
+
+
+def test_compile_in_custom_objects_is_refused(env, tiny_kwargs, tmp_path):
+    """``compile`` is not saved, and SB3's custom_objects replace only what the zip holds: it was ignored."""
+    path = tmp_path / "model.zip"
+    MAPPO("MAPPOPolicy", env, **tiny_kwargs).save(path)
+    with pytest.raises(ValueError) as error:
+        MAPPO.load(path, env=env, custom_objects={"compile": "fast"})
+    one_line(error, "MAPPO.load: custom_objects 'compile' is not used", "MAPPO.load(path, compile=...)")
+
+
+def test_set_parameters_with_an_entry_missing_sets_nothing(env, tiny_kwargs):
+    """torch's two-line ``Missing key(s) in state_dict`` came after it had set the tensors it found."""
+    model = MAPPO("MAPPOPolicy", env, seed=0, **tiny_kwargs)
+    other = MAPPO("MAPPOPolicy", env, seed=1, **tiny_kwargs).get_parameters()
+    first = next(iter(other["policy"]))
+    del other["policy"][first]
+    before = {name: value.clone() for name, value in model.policy.state_dict().items()}
+    with pytest.raises(ValueError) as error:
+        model.set_parameters(other, exact_match=True)
+    one_line(error, "MAPPO.set_parameters:", f"missing policy[{first!r}]", "nothing was set", "exact_match=False")
+    after = model.policy.state_dict()
+    assert all(np.array_equal(after[name].numpy(), value.numpy()) for name, value in before.items())
+    model.set_parameters(other, exact_match=False)  # a positive control: the others are set
+    assert not np.array_equal(model.policy.state_dict()["actor.mlp.1.weight"].numpy(), before["actor.mlp.1.weight"].numpy())

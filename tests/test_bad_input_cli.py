@@ -507,6 +507,52 @@ def test_a_checkpoint_that_is_a_folder_is_skipped_and_kept_aside(finished_tiny_r
     assert [path.name.split(".damaged-")[0] for path in folder.glob("*.damaged-*")] == ["rl_model_870_steps.zip"]
 
 
+def test_a_checkpoint_that_is_a_link_to_nothing_is_skipped_and_kept_aside(finished_tiny_run, tmp_path, capsys):
+    """``shutil.copy2`` of the damaged checkpoint failed with ``FileNotFoundError``: ``--resume`` crashed."""
+    from tests.run_folders import argv, unfinished_copy
+
+    folder = unfinished_copy(finished_tiny_run, tmp_path / "logs")
+    (folder / "rl_model_870_steps.zip").symlink_to("missing")
+    assert run(train_main, argv(tmp_path / "logs", "--resume")) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "rl_model_870_steps.zip does not load (it is a link to missing, which does not exist)" in out
+    assert "Resuming" in out and "from rl_model_840_steps.zip" in out
+    (kept,) = folder.glob("*.damaged-*")
+    assert kept.name.startswith("rl_model_870_steps.zip.damaged-") and kept.is_symlink()  # the link itself, moved aside
+
+
+def test_a_benchmark_checkpoint_that_is_a_link_to_nothing_is_skipped_and_kept_aside(tmp_path, capsys):
+    """The benchmark failed the run (``FileNotFoundError`` in ``failures.txt``)."""
+    tiny = ["--algos", "mappo", "--seeds", "1", "--n-games", "2", "--eval-freq", "60", "-params", "n_steps:10", "n_epochs:1"]
+    assert run(benchmark_main, [*tiny, "-n", "60", "--out", str(tmp_path)]) == 0
+    folder = tmp_path / "runs" / "mappo" / f"{TASK}_s1"
+    (folder / "rl_model_90_steps.zip").symlink_to("missing")
+    capsys.readouterr()
+    assert run(benchmark_main, [*tiny, "-n", "120", "--out", str(tmp_path)]) == 0, (tmp_path / "failures.txt").read_text()
+    log = (folder / "resume.log").read_text()
+    assert "rl_model_90_steps.zip does not load (it is a link to missing, which does not exist)" in log
+    assert "resuming from cn-sparse-n3.zip" in log
+    (kept,) = folder.glob("*.damaged-*")
+    assert kept.name.startswith("rl_model_90_steps.zip.damaged-") and kept.is_symlink()
+    assert (folder / "done.json").is_file()
+
+
+@pytest.mark.parametrize("budget, note", [("90", True), ("120", False)])
+def test_a_budget_that_is_not_a_whole_number_of_rollouts_gets_a_note(tmp_path, capsys, budget, note):
+    """``-n 90`` with rollouts of 60 agent-steps printed "90 agent-steps" and trained 120 without a word."""
+    command = [*TINY, "-f", str(tmp_path), "-params", "n_steps:10", "n_epochs:1"]
+    command[command.index("-n") + 1] = budget
+    assert run(train_main, command) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    expected = (
+        "Note: the budget is not a whole number of rollouts (a rollout: 10 steps x 2 games x 3 agents = 60 agent-steps): "
+        "the run stops at the end of the rollout that reaches it, after 120 agent-steps."
+    )
+    assert (expected in out) == note, out
+    assert ("whole number of rollouts" in out) == note
+    assert f"{int(budget):,} agent-steps, seed 0" in out
+
+
 def test_compile_may_change_at_resume_in_params_too(finished_tiny_run, tmp_path, capsys):
     from tests.run_folders import argv, unfinished_copy
 

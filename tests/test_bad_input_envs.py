@@ -208,6 +208,38 @@ def test_env_fault_named_alike_in_process_and_in_workers(fault, words):
     assert _fault_message(fault, num_cpus=2) == in_process
 
 
+def _every_game_faulty_message(fault, num_cpus, grouped):
+    """The error of a :class:`FaultyEnv` fault in every game (of 2), with the games in this process or in 2 workers,
+    stepped all at once or group by group as double-buffered sampling steps them (one group in this process, one per
+    worker)."""
+    env = make_multiagent_vec_env(lambda: FaultyEnv(fault), n_games=2, seed=0, num_cpus=num_cpus)
+    try:
+        env.reset()
+        with pytest.raises(ValueError) as excinfo:
+            for _ in range(8):
+                if not grouped:
+                    env.step(np.zeros(env.num_envs, dtype=np.int64))
+                    continue
+                for group, slots in enumerate(env.sampling_groups):  # one group in flight at a time: game 0 first
+                    env.step_group_async(group, np.zeros(len(slots), dtype=np.int64))
+                    env.step_any_group_wait()
+                env.step_wait()
+    finally:
+        env.close()
+    return str(excinfo.value)
+
+
+@pytest.mark.parametrize("grouped", [False, True], ids=["lockstep", "grouped"])
+def test_non_finite_observations_of_every_game_are_counted_alike_in_process_and_in_workers(grouped):
+    """A NaN observation in every game: the count was of the games checked together, 2 in this process and 1 in each
+    worker's group (issue 55); it is the named game's on every backend."""
+    in_process = _every_game_faulty_message("nan_obs", num_cpus=0, grouped=grouped)
+    assert "\n" not in in_process, in_process
+    assert "faulty_v0: game 0, agent 1 (agent_1): observation has nan at entry 0 at step 2" in in_process, in_process
+    assert "(1 observations and 0 rewards of this game's step are not finite)" in in_process, in_process
+    assert _every_game_faulty_message("nan_obs", num_cpus=2, grouped=grouped) == in_process
+
+
 class DtypeEnv(FaultyEnv):
     """:class:`FaultyEnv` whose observation space declares ``declared`` observations; at step 2 of the games reset
     with a seed in ``faulty_seeds``, agent_1's observation is of dtype ``returned`` (0.5 for floats, else 1)."""
@@ -278,6 +310,28 @@ def test_agents_listed_in_another_order_take_the_order_of_possible_agents(num_cp
             np.testing.assert_array_equal(got, expected)
     reordered.close()
     reference.close()
+
+
+# ----------------------------------------------------------------------------- a closed env
+CLOSED_ENVS = {"navigation": ("cn-sparse-n3", 0), "in-process": (ToyMeetEnv, 0), "workers": (ToyMeetEnv, 2)}
+
+
+@pytest.mark.parametrize("backend", sorted(CLOSED_ENVS))
+def test_a_closed_env_refuses_to_reset_step_and_train(backend, tiny_kwargs):
+    """In this process a closed env went on stepping its games (``learn`` trained on it without a word); the worker
+    backend refused. Every backend refuses alike now."""
+    from sb3_saeir import MAPPO
+
+    task, num_cpus = CLOSED_ENVS[backend]
+    env = make_multiagent_vec_env(task, n_games=2, seed=0, num_cpus=num_cpus)
+    model = MAPPO("MAPPOPolicy", env, **tiny_kwargs)
+    env.close()
+    calls = [env.reset, lambda: env.step(np.zeros(env.num_envs, dtype=np.int64)), lambda: model.learn(60)]
+    for call in calls:
+        with pytest.raises(RuntimeError) as excinfo:
+            call()
+        message = _one_line(excinfo, "The games are closed (by close()): create a new env to go on.")
+        assert message == "The games are closed (by close()): create a new env to go on."
 
 
 # ----------------------------------------------------------------------------- seeds of the vec env

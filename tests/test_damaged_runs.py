@@ -5,6 +5,8 @@ the file and the fix, nothing written; rows of ``games.monitor.csv``
 that are cut, deleted or damaged are written again from the checkpoint, and rows of ``progress.csv`` that cannot be
 restored are counted in a note naming the file (the damaged file is kept), never dropped without a word."""
 
+import json
+import os
 import re
 import shutil
 import zipfile
@@ -146,6 +148,143 @@ def test_a_damaged_run_file_of_an_older_run_is_named_and_nothing_written(tmp_pat
     assert status == 2, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert f"{path} is damaged ({problem}" in err and "restore it from a copy" in err, err
+    assert snapshot(run) == before
+
+
+MISSING = object()  # a record without a seed
+DAMAGED_SEEDS = {"a string": "zero", "a fraction": 1.5, "missing": MISSING, "a bool": True, "negative": -1}
+
+
+def with_seed(path, seed):
+    """Write ``seed`` into the ``spec.json`` at ``path`` (:data:`MISSING`: no seed)."""
+    record = json.loads(path.read_text())
+    if seed is MISSING:
+        del record["seed"]
+    else:
+        record["seed"] = seed
+    path.write_text(json.dumps(record))
+
+
+def damaged_seed_message(path, seed):
+    shown = "missing" if seed is MISSING else repr(seed)
+    return f"--resume: {path} is damaged (its seed is {shown}, not a seed 0 .. 2**32 - 1); restore it from a copy."
+
+
+@pytest.mark.parametrize("damage", list(DAMAGED_SEEDS))
+def test_a_damaged_seed_in_the_spec_file_is_named_and_nothing_written(run, capsys, damage):
+    """``"zero"`` and a missing seed crashed (``ValueError``, ``KeyError``); 1.5 was taken as 1 and refused as made with
+    other settings (``seed 1.5 -> 1``) though no ``--seed`` was given; ``True`` and -1 were taken."""
+    seed = DAMAGED_SEEDS[damage]
+    path = run / "spec.json"
+    with_seed(path, seed)
+    before = snapshot(run)
+    command = argv(run.parent.parent, "--resume")
+    del command[command.index("--seed") : command.index("--seed") + 2]  # no --seed: the run's own
+    status = train_main(command)
+    err = capsys.readouterr().err
+    assert status == 2, err
+    (line,) = err.strip().splitlines()
+    assert line == f"sb3_saeir.train: error: {damaged_seed_message(path, seed)}"
+    assert snapshot(run) == before
+
+
+def test_a_damaged_seed_of_a_zoo_run_is_named_and_nothing_written(tmp_path, capsys):
+    pytest.importorskip("rl_zoo3")
+    from sb3_saeir.zoo.launcher import main as zoo_main
+
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    folder.mkdir(parents=True)
+    (folder / "spec.json").write_text(json.dumps({"algo": "mappo", "task": TASK, "seed": "zero"}))
+    before = snapshot(folder)
+    assert zoo_main(["train", "--algo", "mappo", "--env", TASK, "-f", str(tmp_path), "--resume"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line == f"sb3_saeir.zoo: error: {damaged_seed_message(folder / 'spec.json', 'zero')}"
+    assert snapshot(folder) == before
+
+
+# ---------------------------------------------------------------------------------------------------- not writable
+def refuse_writes_in(monkeypatch, folder):
+    """``os.access`` says ``folder`` (or a file in it) cannot be written, as it says to a user without the
+    permission (root may write anywhere: the tests run as root on some machines)."""
+    real_access = os.access
+
+    def access(path, mode, *args, **kwargs):
+        if mode & os.W_OK and (os.fspath(path) == os.fspath(folder) or os.path.dirname(os.fspath(path)) == os.fspath(folder)):
+            return False
+        return real_access(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(os, "access", access)
+
+
+def test_unwritable_run_folder_names_the_folder_or_the_file(tmp_path, monkeypatch):
+    """:func:`~sb3_saeir.run_record.check_run_folder_writable` (the one check of ``train``, ``zoo train`` and the
+    benchmark), with the permission probe answering as for a user without the permission."""
+    from sb3_saeir.config import ConfigError
+    from sb3_saeir.run_record import check_run_folder_writable, unwritable_run_folder
+
+    (tmp_path / "resume.log").write_text("")
+    assert unwritable_run_folder(tmp_path) == ""
+    refuse_writes_in(monkeypatch, tmp_path)
+    assert unwritable_run_folder(tmp_path) == f"{tmp_path} is not writable"
+    with pytest.raises(ConfigError) as error:
+        check_run_folder_writable(tmp_path)
+    message = str(error.value)
+    assert "\n" not in message and message.startswith(f"--resume: the run in {tmp_path} cannot go on there (")
+    assert f"chmod -R u+w {tmp_path}" in message and "copy the run to a folder you can write and --resume the copy" in message
+    monkeypatch.undo()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode: not str(path).endswith("resume.log") and real_access(path, mode))
+    assert unwritable_run_folder(tmp_path) == f"{tmp_path / 'resume.log'} is not writable"
+
+
+def test_a_resume_in_a_folder_that_cannot_be_written_is_refused_before_anything_is_printed(run, capsys, monkeypatch):
+    """``Resuming ...`` was printed, then a ``PermissionError`` traceback on ``resume.log``."""
+    before = snapshot(run)
+    refuse_writes_in(monkeypatch, run)
+    status, out, err = resume(run, capsys)
+    assert status == 2, err
+    (line,) = err.strip().splitlines()
+    assert f"--resume: the run in {run} cannot go on there ({run} is not writable)" in line
+    assert out == "" and snapshot(run) == before
+
+
+def test_zoo_and_benchmark_runs_in_a_folder_that_cannot_be_written_are_refused(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("rl_zoo3")
+    from sb3_saeir.benchmark import main as benchmark_main
+    from sb3_saeir.zoo.launcher import main as zoo_main
+
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    folder.mkdir(parents=True)
+    (folder / "spec.json").write_text(json.dumps({"algo": "mappo", "task": TASK, "seed": 0}))
+    out = tmp_path / "bench"
+    bench = ["--algos", "mappo", "--seeds", "1", "-n", "120", "--n-games", "2", "-params", "n_steps:10", "--out", str(out)]
+    assert benchmark_main([*bench, "-n", "60"]) == 0
+    run_folder = out / "runs" / "mappo" / f"{TASK}_s1"
+    capsys.readouterr()
+    before = snapshot(tmp_path)
+    for refused in (folder, run_folder):
+        refuse_writes_in(monkeypatch, refused)
+    assert zoo_main(["train", "--algo", "mappo", "--env", TASK, "-f", str(tmp_path), "--resume"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"sb3_saeir.zoo: error: --resume: the run in {folder} cannot go on there ({folder} is not writable)" in line
+    assert benchmark_main(bench) == 2  # -n 120: the finished run goes on
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"mappo/{TASK}_s1: the run in {run_folder} cannot go on there ({run_folder} is not writable)" in line
+    assert "give the copy's benchmark folder as --out" in line
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write in a folder without write permission")
+def test_a_resume_in_a_read_only_folder_is_refused(run, capsys):
+    before = snapshot(run)
+    os.chmod(run, 0o555)
+    try:
+        status, out, err = resume(run, capsys)
+    finally:
+        os.chmod(run, 0o755)
+    assert status == 2 and out == "", err
+    (line,) = err.strip().splitlines()
+    assert f"--resume: the run in {run} cannot go on there" in line and "make the folder and its files writable" in line
     assert snapshot(run) == before
 
 

@@ -108,10 +108,17 @@ def test_a_folder_in_use_refuses_train_benchmark_and_zoo_and_nothing_is_written(
         assert list(run.iterdir()) == [] and sorted(path.name for path in out.iterdir()) == ["runs"]
 
 
-def test_zoo_resume_of_a_folder_in_use_is_refused(tmp_path, capsys):
+def test_zoo_resume_of_a_folder_in_use_is_refused(tmp_path, capsys, monkeypatch):
+    """Refused by the launcher (``claim_resumed_run``), before rl-zoo3 sets anything up: the manager's setup, which
+    takes the lock of a new run, must not be reached (it would refuse too, after rl-zoo3's printing)."""
     pytest.importorskip("rl_zoo3")
     from sb3_saeir.zoo.launcher import main as zoo_main
+    from sb3_saeir.zoo.manager import RunExperimentManager
 
+    def not_reached(self):
+        raise AssertionError("rl-zoo3's setup ran: the launcher did not refuse the folder in use")
+
+    monkeypatch.setattr(RunExperimentManager, "setup_experiment", not_reached)
     folder = tmp_path / "mappo" / f"{TASK}_1"
     folder.mkdir(parents=True)
     (folder / "spec.json").write_text('{"algo": "mappo", "task": "cn-sparse-n3", "seed": 0}')

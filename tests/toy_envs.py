@@ -162,8 +162,9 @@ class FaultyEnv(ParallelEnv):
     seed in ``faulty_seeds`` (``None``: every game).
 
     Faults: ``shape_changes``, ``missing_obs``, ``string_obs`` (an array of numeric strings), ``object_obs`` (a list
-    of ``Decimal``), ``missing_reward``, ``none_reward``, ``string_reward``, ``renamed`` (new agent names at the second
-    reset), ``declared_shape`` (every observation of another shape), ``huge_reward``, ``one_terminated``.
+    of ``Decimal``), ``nan_obs`` (a NaN in agent_1's observation), ``missing_reward``, ``none_reward``,
+    ``string_reward``, ``renamed`` (new agent names at the second reset), ``declared_shape`` (every observation of
+    another shape), ``huge_reward``, ``one_terminated``.
     """
 
     metadata = {"name": "faulty_v0"}  # noqa: RUF012
@@ -197,6 +198,8 @@ class FaultyEnv(ParallelEnv):
             obs["agent_1"] = np.array(["0.5", "0.25"])
         if self._now("object_obs"):
             obs["agent_1"] = [Decimal("0.5"), Decimal("0.25")]
+        if self._now("nan_obs"):
+            obs["agent_1"] = np.array([np.nan, 0.0], np.float32)
         return obs
 
     def reset(self, seed=None, options=None):

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.benchmark.execution import run_all
+from sb3_saeir.benchmark.execution import RERUN_COPY, is_finished, run_all
 from sb3_saeir.benchmark.reports import plot_system_entropy, report
 from sb3_saeir.benchmark.runs import ensure_spec_file, move_aside, parse_seeds, run_folder, stored_spec_differences
 from sb3_saeir.command_line import OneLineParser, budget, check_folder, count
@@ -19,7 +19,7 @@ from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.config import ALGOS, DEFAULT_N_GAMES, ConfigError, check_hyperparams, load_hyperparams, parse_params
-from sb3_saeir.run_record import RunSpec, spec_record
+from sb3_saeir.run_record import RunSpec, check_run_folder_writable, read_spec_file, spec_record
 
 # The line Ctrl-C ends with (exit status 130).
 INTERRUPTED = "interrupted: re-run the same command to resume"
@@ -60,6 +60,33 @@ def folders_in_use(folders: list[Path]) -> list[str]:
         except RunFolderInUseError as error:
             busy.append(str(error))
     return busy
+
+
+def unwritable_runs(out: Path, specs: list[RunSpec]) -> list[str]:
+    """Why each run folder this command would go on writing cannot be written (a run that is not finished, or whose
+    budget the command raises: :func:`~sb3_saeir.run_record.check_run_folder_writable`), before anything is written.
+
+    :param out: the benchmark folder
+    :param specs: the command's runs
+    """
+    problems = []
+    for spec in specs:
+        folder = run_folder(out, spec)
+        if not folder.is_dir() or is_finished(folder, _stored_or_none(folder), spec):
+            continue
+        try:
+            check_run_folder_writable(folder, spec.name, RERUN_COPY)
+        except ConfigError as error:
+            problems.append(str(error))
+    return problems
+
+
+def _stored_or_none(folder: Path) -> dict[str, Any] | None:
+    """A run folder's ``spec.json``, ``None`` when there is none or it is damaged (the settings check names that)."""
+    try:
+        return read_spec_file(folder)
+    except ConfigError:
+        return None
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -268,6 +295,12 @@ def _main(args: argparse.Namespace) -> int:
     busy = folders_in_use([run_folder(out, spec) for spec in specs]) if not args.report_only else []
     if busy:
         return _error(busy[0] + (f" ({len(busy) - 1} more run folders of this command are in use)" if len(busy) > 1 else ""))
+    moved = {spec.name for spec, _ in mismatches}  # --rerun-changed: moved aside, trained anew
+    going_on = [spec for spec in specs if spec.name not in moved]
+    unwritable = unwritable_runs(out, going_on) if not args.report_only else []
+    if unwritable:
+        more = f" ({len(unwritable) - 1} more run folders cannot be written)" if len(unwritable) > 1 else ""
+        return _error(unwritable[0] + more)
     failures: list[str] = []
     if not args.report_only:
         out.mkdir(parents=True, exist_ok=True)

@@ -18,6 +18,7 @@ from sb3_saeir.run import Run
 from sb3_saeir.run_record import (
     RunLog,
     RunSpec,
+    check_run_folder_writable,
     extended_budget,
     read_rows,
     read_spec_file,
@@ -28,6 +29,8 @@ from sb3_saeir.run_record import (
 
 # The benchmark checkpoints at every rollout start and keeps the newest two (one to fall back to).
 KEEP_CHECKPOINTS = 2
+# How the benchmark goes on with a copy of a run folder it cannot write (check_run_folder_writable's fix).
+RERUN_COPY = "give the copy's benchmark folder as --out"
 
 
 def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, Any]:
@@ -42,6 +45,7 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
         last bits of float sums.
 
     :raises ValueError: when the folder holds a run made with other settings
+    :raises ~sb3_saeir.config.ConfigError: when a run that goes on cannot write its folder
     """
     import torch as th
 
@@ -55,6 +59,7 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
         assert stored is not None
         if is_finished(path, stored, spec):
             return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(path / EVALUATIONS_FILE)}
+        check_run_folder_writable(path, spec.name, RERUN_COPY)
         run = Run(
             path,
             spec,

@@ -377,9 +377,9 @@ def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
 
 
 def check_save_path(algo_name: str, path: Any) -> None:
-    """Refuse a ``save`` path where no file can be written, before anything is written: an empty name, a path under a
-    file, or in a folder that is not writable (SB3 would recurse without end under ``/proc``, or fail with the OS's
-    message). A file object passes (SB3 writes to it).
+    """Refuse a ``save`` path where no file can be written, before anything is written: an empty name, a folder (SB3
+    saved to ``<path>_2`` instead), a path under a file, or in a folder that is not writable (SB3 would recurse without
+    end under ``/proc``, or fail with the OS's message). A file object passes (SB3 writes to it).
 
     :param algo_name: class name for the message
     :param path: the ``path`` argument of ``save``
@@ -390,12 +390,120 @@ def check_save_path(algo_name: str, path: Any) -> None:
         raise ValueError(f"{algo_name}.save: {str(path)!r} is not a file name; pass e.g. 'model.zip'.")
     target = pathlib.Path(path)
     if target.suffix == "":
-        target = target.with_suffix(".zip")  # as SB3's save names it (an existing folder: SB3 saves to <path>_2)
+        target = target.with_suffix(".zip")  # as SB3's save names it
+    if target.is_dir():  # SB3 saved to <path>_2, which load(path) does not read
+        raise ValueError(
+            f"{algo_name}.save: {str(target)!r} is a folder; save to a file path such as {str(target / 'model.zip')!r}."
+        )
     problem = unwritable_folder(target.parent)
     if problem:
         raise ValueError(f"{algo_name}.save: cannot write {str(target)!r}: {problem}; save to a folder you can write.")
     if target.exists() and not os.access(target, os.W_OK):
         raise ValueError(f"{algo_name}.save: {str(target)!r} exists and is not writable; save to another path.")
+
+
+# ------------------------------------------------------------------------------------------------ loading
+def check_load_arguments(algo_name: str, path: Any, custom_objects: dict[str, Any] | None) -> None:
+    """Refuse, before SB3's ``load`` reads anything: a path that is no file (SB3 named ``<path>.zip``, the second
+    name it tries, or failed on a folder) and a ``compile`` in ``custom_objects`` (SB3 replaces only what the zip
+    holds, and ``compile`` is not saved: it was ignored).
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``load`` (a file object passes)
+    :param custom_objects: the ``custom_objects`` argument of ``load``
+    :raises FileNotFoundError: for a path where there is no file
+    :raises IsADirectoryError: for a folder
+    :raises ValueError: for ``compile`` in ``custom_objects``
+    """
+    if "compile" in (custom_objects or {}):
+        raise ValueError(
+            f"{algo_name}.load: custom_objects 'compile' is not used (compile is not saved with a model); pass it as "
+            f"{algo_name}.load(path, compile=...)."
+        )
+    if not isinstance(path, (str, os.PathLike)):
+        return
+    target = pathlib.Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(
+            f"{algo_name}.load: {str(path)!r} is a folder, not a model zip; give the path of a zip file, such as "
+            f"{str(target / 'model.zip')!r}."
+        )
+    if not target.exists() and not pathlib.Path(f"{path}.zip").exists():  # SB3 reads <path>, else <path>.zip
+        raise FileNotFoundError(f"{algo_name}.load: no such file {str(path)!r}.")
+
+
+def saved_data(path: Any) -> dict[str, Any] | None:
+    """The ``data`` entry of an SB3 model zip as JSON, read without loading the model (``None`` when it cannot be
+    read: SB3's ``load`` then names the damage). A file object is read and put back where it was.
+
+    :param path: the ``path`` argument of ``load``: a path (``<path>.zip`` when ``<path>`` is no file, as SB3 reads
+        it) or a binary file object
+    """
+    if isinstance(path, (str, os.PathLike)):
+        source: Any = path if pathlib.Path(path).is_file() else pathlib.Path(f"{path}.zip")
+        position = None
+    else:
+        try:
+            source, position = path, path.tell()
+        except (AttributeError, OSError):  # a file object that cannot go back: left to SB3
+            return None
+    try:
+        with zipfile.ZipFile(source) as archive:
+            data = json.loads(archive.read("data"))
+    except Exception:  # a damaged or foreign file: SB3's load names it
+        data = None
+    finally:
+        if position is not None:
+            path.seek(position)
+    return data if isinstance(data, dict) else None
+
+
+def check_saved_model(algo_name: str, path: Any, data: dict[str, Any], env: Any) -> None:
+    """Refuse a zip that another library saved (its policy class is not a
+    :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy`: SB3 failed on the spaces, or on the missing
+    ``n_agents``), and an env of another number of agents per game than the model's (checked as ``set_env`` does,
+    before SB3's comparison of the observation spaces).
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``load``
+    :param data: the zip's ``data`` (:func:`saved_data`)
+    :param env: the ``env`` argument of ``load``
+    """
+    foreign = _foreign_policy(data.get("policy_class"))
+    if foreign is not None:
+        name, library = foreign
+        raise ValueError(
+            f"{algo_name}.load: {str(path)!r} is a model of another library (its policy class is {name}), not an "
+            f"sb3-saeir model; load it with that library's algorithm class, e.g. {library}'s PPO.load."
+        )
+    n_agents = data.get("n_agents")
+    if isinstance(env, VecEnv) and isinstance(n_agents, int) and not isinstance(n_agents, bool):
+        check_n_agents(algo_name, env, n_agents)
+
+
+def _foreign_policy(entry: Any) -> tuple[str, str] | None:
+    """The name of the policy class a zip's ``data`` holds (``policy_class``, as SB3 serialises a class) and its
+    library (the top package of its module) when it is another library's: from a module outside the package and not a
+    :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy` (a user's subclass is the package's); ``None``
+    otherwise, or when the entry is not one SB3 writes.
+
+    :param entry: the ``policy_class`` entry of the zip's ``data``
+    """
+    import base64
+
+    import cloudpickle
+
+    module = entry.get("__module__") if isinstance(entry, dict) else None
+    if not isinstance(module, str) or module.split(".")[0] == "sb3_saeir":
+        return None
+    library = module.split(".")[0]
+    try:
+        policy_class = cloudpickle.loads(base64.b64decode(entry[":serialized:"].encode()))
+    except Exception:  # its module is not installed here, or the entry is damaged: named by its module
+        return f"a class of {module}", library
+    if isinstance(policy_class, type) and issubclass(policy_class, MultiAgentActorCriticPolicy):
+        return None
+    return f"{module}.{getattr(policy_class, '__qualname__', policy_class)}", library
 
 
 # ------------------------------------------------------------------------------------------------ saved networks
@@ -466,6 +574,55 @@ def check_network_kind(owner: str, saved_policy: Iterable[str], policy: MultiAge
     )
 
 
+class ParameterNamesError(ValueError):
+    """Parameters given with ``exact_match`` whose entries are not the model's (:func:`check_parameter_names`);
+    :func:`model_zip_errors` says which ``load`` argument caused it.
+
+    :param message: the one line
+    :param differences: the entries missing and unexpected, for ``load``'s message
+    """
+
+    def __init__(self, message: str, differences: str) -> None:
+        super().__init__(message)
+        self.differences = differences
+
+
+def check_parameter_names(owner: str, params: dict[str, Any], model: Any) -> None:
+    """For ``set_parameters(..., exact_match=True)``: refuse parameters that are not every one of the model's, or
+    that the model does not have, before any is set (torch's ``load_state_dict`` set the tensors it found, then raised
+    over two lines). Optimizer states are left to torch (it checks them before setting any).
+
+    :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
+    :param params: object name (``"policy"``, ``"policy.optimizer"``) -> state dict, as ``get_parameters`` returns them
+    :param model: the model whose parameters are set
+    :raises ValueError: one line naming a few missing and unexpected entries and the fix
+    """
+    from stable_baselines3.common.save_util import recursive_getattr
+
+    expected = list(model._get_torch_save_params()[0])
+    missing = [name for name in expected if name not in params]
+    unexpected = [name for name in params if name not in expected]
+    for name in (name for name in expected if name in params):
+        target, given = recursive_getattr(model, name), params[name]
+        if isinstance(target, th.nn.Module) and isinstance(given, dict):
+            own = target.state_dict()
+            missing += [f"{name}[{key!r}]" for key in own if key not in given]
+            unexpected += [f"{name}[{key!r}]" for key in given if key not in own]
+    if missing or unexpected:
+        found = [f"{what} {_a_few(names)}" for what, names in (("missing", missing), ("unexpected", unexpected)) if names]
+        raise ParameterNamesError(
+            f"{owner}: the parameters are not this model's ({'; '.join(found)}); nothing was set. Pass every entry of "
+            "get_parameters(), or exact_match=False to set only those that match.",
+            "; ".join(found),
+        )
+
+
+def _a_few(names: list[str], shown: int = 3) -> str:
+    """The first ``shown`` names, and how many more."""
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
+
+
 @contextlib.contextmanager
 def model_zip_errors(algo_name: str, path: Any, custom_objects: dict[str, Any] | None = None) -> Iterator[None]:
     """Around SB3's ``load``: the errors it raises for a file that is not a complete model zip (truncated or edited)
@@ -484,9 +641,15 @@ def model_zip_errors(algo_name: str, path: Any, custom_objects: dict[str, Any] |
         if override is _NO_OVERRIDE:  # the zip's own policy_kwargs and parameters disagree: an edited zip
             raise _incomplete_model_error(algo_name, path, error) from None
         raise _override_kind_error(algo_name, path, override, error) from None
+    except ParameterNamesError as error:
+        if override is _NO_OVERRIDE:
+            raise _incomplete_model_error(algo_name, path, error) from None
+        raise _override_error(algo_name, path, override, error.differences) from None
     except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
         if override is not _NO_OVERRIDE and isinstance(error, RuntimeError) and "loading state_dict" in str(error):
-            raise _override_error(algo_name, path, override, error) from None
+            lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+            detail = lines[1] if len(lines) > 1 else lines[0]  # torch's first mismatch
+            raise _override_error(algo_name, path, override, detail.rstrip(". ")) from None
         raise _incomplete_model_error(algo_name, path, error) from None
     except ValueError as error:
         # SB3's own ValueErrors for a damaged zip
@@ -523,13 +686,11 @@ def _override_kind_error(algo_name: str, path: Any, override: Any, error: Networ
     )
 
 
-def _override_error(algo_name: str, path: Any, override: Any, error: RuntimeError) -> ValueError:
-    """One line for ``custom_objects={"policy_kwargs": ...}`` that build a network of other sizes than the saved one
-    (torch's ``load_state_dict`` error: its first mismatch is named)."""
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-    detail = lines[1] if len(lines) > 1 else lines[0]
+def _override_error(algo_name: str, path: Any, override: Any, detail: str) -> ValueError:
+    """One line for ``custom_objects={"policy_kwargs": ...}`` that build another network than the saved one (other
+    sizes, other entries), ``detail`` naming the first differences."""
     return ValueError(
         f"{algo_name}.load: custom_objects policy_kwargs {override!r} do not fit the network saved in {str(path)!r} "
-        f"({detail.rstrip('. ')}); drop the policy_kwargs override, or repeat the saved policy_kwargs in it "
+        f"({detail}); drop the policy_kwargs override, or repeat the saved policy_kwargs in it "
         "(custom_objects replace them whole)."
     )

@@ -43,6 +43,9 @@ from sb3_saeir.common.torch_layers import (
 from sb3_saeir.common.type_aliases import MultiAgentStates
 from sb3_saeir.common.utils import check_bool
 
+# NumPy dtype kinds that predict takes as observations: bool, signed and unsigned integers, floats.
+NUMBER_KINDS = "biuf"
+
 
 class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     """Base class: recurrent parameter-shared actor, one or more critics over a game's agents, ValueNorm per critic.
@@ -55,7 +58,8 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     ``recurrent=False`` builds every network without its GRU (the feed-forward variant, as the MAPPO authors'
     ``use_recurrent_policy=False`` and BenchMARL's default MAPPO; not the paper's setting): the policy keeps no state
     (its states have width 0) and the update runs each network once per minibatch on its valid rows, without chunks
-    (``docs/guide/algorithms.md``, "Feed-forward networks").
+    (``docs/guide/algorithms.md``, "Feed-forward networks"). With ``recurrent_actor=True`` the actor keeps its GRU
+    (feed-forward critics; the update runs on chunks).
 
     :param observation_space: one agent's observation space
     :param action_space: one agent's action space
@@ -64,9 +68,10 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
     :param hidden_size: width of every hidden layer and GRU (64 in the paper's code)
     :param activation_fn: activation of the MLP layers (Tanh for navigation, ReLU for football in the paper)
     :param recurrent: GRUs in the actor and every critic (the paper's and the authors' setting, default); ``False``:
-        the feed-forward networks, no GRU anywhere
+        feed-forward critics, and a feed-forward actor unless ``recurrent_actor=True`` keeps the actor's GRU
     :param recurrent_actor: GRU in the actor; ``None`` (default): as ``recurrent``. ``False`` with recurrent critics
-        gives the paper's plain MLP actor
+        gives the paper's plain MLP actor; ``True`` with ``recurrent=False`` a GRU actor with feed-forward critics
+        (``docs/guide/algorithms.md``, "Feed-forward networks")
     :param normalize_values: one ValueNorm per critic (spec §1.9); values are predicted in normalised space
     :param value_norm_beta: ValueNorm's EMA coefficient
     :param critic_gumbel_noise: draw Gumbel noise in the hypergraph critics at every forward pass (authors' code);
@@ -522,17 +527,25 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         return actions_np, new_state
 
     def _predict_observations(self, observation: Any) -> np.ndarray:
-        """``observation`` of :meth:`predict` as float32, checked: ``(d,)`` or ``(B, d)`` of finite numbers.
+        """``observation`` of :meth:`predict` as float32, checked: ``(d,)`` or ``(B, d)`` of finite numbers, of a
+        bool, integer or float dtype (NumPy casts strings such as ``"0.5"`` and complex numbers to float32 without an
+        error).
 
-        :raises ValueError: one line naming ``observation`` and the shape expected
+        :raises ValueError: one line naming ``observation`` and the shape or dtype expected
         """
         shape = tuple(self.observation_space.shape)  # type: ignore[arg-type]
         try:
-            obs_array = np.asarray(observation, dtype=np.float32)
+            given = np.asarray(observation)
         except (TypeError, ValueError) as error:
             raise ValueError(
                 f"predict: observation must be an array of numbers of shape {shape} or (n_agents, *{shape}); {error}"
             ) from None
+        if given.dtype.kind not in NUMBER_KINDS:
+            raise ValueError(
+                f"predict: the observation must be an array of numbers, got dtype {given.dtype}; pass bool, integer or "
+                "float values."
+            )
+        obs_array = given.astype(np.float32)
         if obs_array.shape != shape and obs_array.shape[1:] != shape:
             raise ValueError(
                 f"predict: observation of shape {obs_array.shape} does not match the observation space: expected one "

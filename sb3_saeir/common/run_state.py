@@ -227,13 +227,16 @@ def load_resume_state(path: Path) -> dict[str, Any] | None:
 
 
 def checkpoint_problem(path: Path) -> str:
-    """Why a checkpoint (or any model zip) cannot be loaded, in a few words (``""`` when it can): not a whole zip
+    """Why a checkpoint (or any model zip) cannot be loaded, in a few words (``""`` when it can): a link to nothing, a
+    folder, not a whole zip
     (cut short by a kill or a full disk), an entry that fails its CRC check (bit rot), an entry of a finished save
     missing (SB3 writes ``_stable_baselines3_version`` last: a save stopped by Ctrl-C closes the zip without it), a
     ``data`` or resume state that does not read back.
 
     :param path: the zip
     """
+    if path.is_symlink() and not path.exists():
+        return f"it is a link to {os.readlink(path)}, which does not exist"
     if path.is_dir():
         return "it is a folder, not a zip file"
     try:

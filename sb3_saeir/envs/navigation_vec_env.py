@@ -251,7 +251,7 @@ class NavigationVecEnv(GroupedVecEnv):
 
     # ------------------------------------------------------------------ SB3 VecEnv API
     def close(self) -> None:
-        pass
+        self.closed = True
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         """Picture of game 0; ``None`` for the other slots."""

@@ -492,10 +492,13 @@ class MAPPO(OnPolicyAlgorithm):
         force_reset: bool = True,
         **kwargs: Any,
     ) -> SelfMAPPO:
-        """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``), the env's
-        ``n_agents`` checked against the model's (as :meth:`set_env`), and one line for a file that is not a complete
-        model zip, or for ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit
-        (recurrent against feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`)."""
+        """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``; ``compile``
+        is a keyword argument, not a custom object), the env's ``n_agents`` checked against the model's (as
+        :meth:`set_env`, before SB3 compares the spaces), and one line for a path where there is no file or a folder
+        (:func:`~sb3_saeir.common.checks.check_load_arguments`), a model of another library
+        (:func:`~sb3_saeir.common.checks.check_saved_model`), a file that is not a complete model zip, or
+        ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit (recurrent against
+        feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`)."""
         name = cls.__name__
         overrides = {**(custom_objects or {}), **kwargs}
         checks.check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
@@ -504,6 +507,10 @@ class MAPPO(OnPolicyAlgorithm):
         checks.check_device(name, device)
         if env is not None:
             checks.check_env_argument(name, env)
+        checks.check_load_arguments(name, path, custom_objects)
+        data = checks.saved_data(path)
+        if data is not None:
+            checks.check_saved_model(name, path, data, env)
         with checks.model_zip_errors(name, path, custom_objects):
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         model._apply_overrides(overrides)
@@ -536,7 +543,9 @@ class MAPPO(OnPolicyAlgorithm):
     ) -> None:
         """SB3's ``set_parameters``; with ``exact_match``, the parameters of a recurrent network given to a
         feed-forward model (or the reverse) are refused in one line before any is set
-        (:func:`~sb3_saeir.common.checks.check_network_kind`; torch's ``load_state_dict`` error listed every GRU key).
+        (:func:`~sb3_saeir.common.checks.check_network_kind`; torch's ``load_state_dict`` error listed every GRU key),
+        and so are parameters with entries missing or unknown to the model
+        (:func:`~sb3_saeir.common.checks.check_parameter_names`; torch set the others first).
 
         :param load_path_or_dict: a model zip (path or file object), or a dict of state dicts as ``get_parameters``
             returns it
@@ -549,8 +558,11 @@ class MAPPO(OnPolicyAlgorithm):
         else:
             _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
         saved_policy = params.get("policy")
+        owner = f"{type(self).__name__}.set_parameters"
         if exact_match and isinstance(saved_policy, dict) and getattr(self, "policy", None) is not None:
-            checks.check_network_kind(f"{type(self).__name__}.set_parameters", saved_policy, self.policy)
+            checks.check_network_kind(owner, saved_policy, self.policy)
+        if exact_match and getattr(self, "policy", None) is not None:
+            checks.check_parameter_names(owner, params, self)
         super().set_parameters(params, exact_match=exact_match, device=device)
 
     def set_random_seed(self, seed: int | None = None) -> None:

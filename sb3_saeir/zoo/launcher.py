@@ -22,7 +22,7 @@ from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
 from sb3_saeir.experiment import find_run_folder
-from sb3_saeir.run_record import read_spec_file
+from sb3_saeir.run_record import check_run_folder_writable, read_spec_file
 from sb3_saeir.zoo.registration import (
     WRAPPER_NAME,
     EnjoySession,
@@ -303,8 +303,8 @@ def train_with_manager(command: ZooTrain) -> None:
 
 def claim_resumed_run(argv: list[str], resume: int | Path, command: ZooTrain) -> tuple[Path, dict[str, Any], list[str]]:
     """The run folder ``--resume`` names (the latest run, run ``N`` or a folder's path), locked (the lock kept in
-    ``command.lock``), its settings record, and rl-zoo3's arguments with the run's own seed: a ``--seed`` other than
-    the run's (or -1, rl-zoo3's default) is refused.
+    ``command.lock``), its settings record, and rl-zoo3's arguments with the run's own seed: a folder that cannot be
+    written, a damaged record and a ``--seed`` other than the run's (or -1, rl-zoo3's default) are refused.
 
     :param argv: rl-zoo3's ``train`` arguments
     :param resume: ``--resume``'s value
@@ -323,6 +323,7 @@ def claim_resumed_run(argv: list[str], resume: int | Path, command: ZooTrain) ->
     ).parse_known_args(argv)
     folder = find_run_folder(options.log_folder, options.algo, EnvironmentName(options.env).gym_id, resume)
     command.lock = RunFolderLock(folder).acquire()
+    check_run_folder_writable(folder)
     try:
         record = read_spec_file(folder)
     except ConfigError as error:

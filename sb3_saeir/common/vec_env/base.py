@@ -26,6 +26,9 @@ from sb3_saeir.common.vec_env.game_checks import check_finite
 # Key under which a task env reports its per-episode metrics in ``infos[agent]`` at the last step of an episode.
 EPISODE_METRICS_KEY = "episode_metrics"
 
+# What resetting or stepping a closed env says (the worker backend's pool says the same of workers closed by an error).
+CLOSED_MESSAGE = "The games are closed (by close()): create a new env to go on."
+
 # One step of games as their engine returns it, before the episode records: observations ``(rows, ...)``, rewards
 # ``(rows,)`` float32, terminations and truncations ``(rows,)`` bool, one info dict per slot (the vec env's own copies).
 RawStep = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]
@@ -48,8 +51,9 @@ class GroupedVecEnv(VecEnv):
     engine).
 
     A subclass implements the games: :meth:`_reset_games`, :meth:`_step_games_async`, :meth:`_step_games_wait`,
-    :meth:`_abandon_steps`, :meth:`_game_objects`, :meth:`_render_game_zero`, ``get_images`` and ``close``; and, when
-    its games run in worker processes, :attr:`sampling_groups` (one group per worker) and :meth:`_first_done_group`.
+    :meth:`_abandon_steps`, :meth:`_game_objects`, :meth:`_render_game_zero`, ``get_images`` and ``close`` (which sets
+    :attr:`closed`: a closed env refuses to reset or step); and, when its games run in worker processes,
+    :attr:`sampling_groups` (one group per worker) and :meth:`_first_done_group`.
     An env that can save its exact state for resumed training also has ``get_resume_state`` / ``set_resume_state``
     (:class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv`; :meth:`_records_state` holds this class's part).
 
@@ -100,6 +104,8 @@ class GroupedVecEnv(VecEnv):
         # grouped stepping: groups with a step in flight, and per group its steps not yet returned by step_wait
         self._in_flight: set[int] = set()
         self._staged: dict[int, collections.deque[RawStep]] = {}
+        #: Set by ``close``: the games cannot be reset or stepped any more (:meth:`_check_open`).
+        self.closed = False
         self._init_episode_records()
 
     # ------------------------------------------------------------------ what a subclass implements
@@ -157,6 +163,11 @@ class GroupedVecEnv(VecEnv):
         """
         return groups[0]
 
+    def _check_open(self) -> None:
+        """Refuse to reset or step games that ``close`` closed (they stepped on as if open, in this process)."""
+        if self.closed:
+            raise RuntimeError(CLOSED_MESSAGE)
+
     # ------------------------------------------------------------------ layout
     def game_of(self, slot: int) -> int:
         """Game index of a vec env slot (``slot // n_agents``)."""
@@ -191,6 +202,7 @@ class GroupedVecEnv(VecEnv):
         :param options: optional reset options for every game (else those set by ``set_options``)
         :return: the first observations, shape ``(n_games * n_agents, *obs_shape)``
         """
+        self._check_open()
         if seed is not None:
             self.seed(seed)
         if options is None:
@@ -210,6 +222,7 @@ class GroupedVecEnv(VecEnv):
 
     # ------------------------------------------------------------------ stepping
     def step_async(self, actions: np.ndarray) -> None:
+        self._check_open()
         if self._staged or self._in_flight:
             raise RuntimeError(
                 "step_async called while groups of games step on their own (double-buffered sampling): wait for them "
@@ -240,6 +253,7 @@ class GroupedVecEnv(VecEnv):
         :param group: index into :attr:`sampling_groups`
         :param actions: ``(len(sampling_groups[group]), ...)`` the group's actions
         """
+        self._check_open()
         self._step_games_async(actions, group)
         self._in_flight.add(group)
 

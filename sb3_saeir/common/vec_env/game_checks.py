@@ -375,7 +375,8 @@ def check_finite(
     episode_steps: np.ndarray,
     first_game: int = 0,
 ) -> None:
-    """Raise :class:`NonFiniteValueError` naming the first slot whose observation or reward is NaN or infinite.
+    """Raise :class:`NonFiniteValueError` naming the first slot whose observation or reward is NaN or infinite, and how
+    many of its game's are (the games' workers check their games apart, so other games are not counted).
 
     :param env_name: the env, for the message
     :param observations: ``(n_games * n_agents, ...)``
@@ -400,9 +401,11 @@ def check_finite(
         bad_entries = np.flatnonzero(~np.isfinite(flat[slot]))
         what = f"observation has {flat[slot, bad_entries[0]]} at entry {int(bad_entries[0])}"
     step = int(episode_steps[game])
+    rows = slice(game * n_agents, (game + 1) * n_agents)  # counted in the named game only: the same on every backend
     raise NonFiniteValueError(
         f"{env_name}: game {first_game + game}, agent {agent} ({agent_names[agent]}): {what} at step {step} of its episode "
-        f"({int(bad_obs.sum())} observations and {int(bad_rewards.sum())} rewards of this step are not finite). "
+        f"({int(bad_obs[rows].sum())} observations and {int(bad_rewards[rows].sum())} rewards of this game's step are "
+        "not finite). "
         "Fix the env; SB3's VecCheckNan(env, raise_exception=True) also checks the actions that led there; "
         "make_multiagent_vec_env(..., check_finite=False) turns this check off."
     )

@@ -89,6 +89,7 @@ class MultiAgentVecEnv(GroupedVecEnv):
 
     # ------------------------------------------------------------------ SB3 VecEnv API
     def close(self) -> None:
+        self.closed = True
         self.venv.close()
         if hasattr(self._probe_env, "close"):
             self._probe_env.close()

@@ -564,6 +564,7 @@ class MultiAgentWorkerVecEnv(GroupedVecEnv):
 
     # ------------------------------------------------------------------ SB3 VecEnv API
     def close(self) -> None:
+        self.closed = True
         self.pool.close()
         if hasattr(self._probe_env, "close"):
             self._probe_env.close()

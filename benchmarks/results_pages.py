@@ -212,6 +212,7 @@ STUDIES: dict[str, Study] = {
         (
             Row(NAV3_FREE, "MAPPO", ("navigation-calibrated/runs.csv:mappo-no-penalty",), RANDOM["mpe N=3"], NONE),
             Row(NAV3_REACH, "MAPPO", ("navigation-calibrated/runs.csv:mappo-reach",), RANDOM["mpe N=3"], NONE),
+            Row(NAV3_FREE, "SAEIR_PPO", ("navigation-calibrated/runs.csv:saeir_ppo-no-penalty",), RANDOM["mpe N=3"], NONE),
             *(
                 Row(NAV3, label, (f"{GUMBEL}:{arm}",), RANDOM["mpe N=3"], NONE, GUMBEL_ARMS, arm)
                 for label, arm in (("MSHG-only", "mshg-gumbel"), ("MSHG-only, no Gumbel noise", "mshg-no-gumbel"))

@@ -85,7 +85,7 @@ def test_checkpoint_tables_follow_the_longer_runs(pages):
     methods = [line.split(" | ")[1] for line in pages.rows_table(study, RESULTS, summary=False)[2:]]
     assert methods.count("MSHG-only") == 1 and "MSHG-only, no Gumbel noise" in methods
     table = pages.checkpoints_table("navigation-calibrated", RESULTS)
-    assert [line.split(" | ")[1] for line in table[2:]] == ["MAPPO", "MAPPO"]
+    assert [line.split(" | ")[1] for line in table[2:]] == ["MAPPO", "MAPPO", "SAEIR_PPO"]
 
 
 def test_a_running_study_page_is_rebuilt_too(pages, tmp_path, capsys):

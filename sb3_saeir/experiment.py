@@ -9,23 +9,19 @@ from the packaged (or given) config, its callbacks, ``learn`` and ``save``; a ru
 
 from __future__ import annotations
 
-import base64
 import inspect
-import json
-import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
-import cloudpickle
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
 from sb3_saeir.common.run_files import BEST_MODEL_FILE, FINAL_MODEL
-from sb3_saeir.common.run_state import load_resume_state
+from sb3_saeir.common.run_state import load_resume_state, read_zip_data, saved_policy_class
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.config import (
     ALGOS,
@@ -245,11 +241,9 @@ def saved_model_kind(path: str | Path) -> tuple[str, str | None] | None:
     SB3's zip does not record the algorithm class; the policy class and the intrinsic reward tell the package's
     methods apart (``sn_mappo`` has ``SNMAPPOPolicy``, ``mshg_only`` ``MSHGPolicy`` without a bonus, ...).
     """
-    try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data"))
-        policy = cloudpickle.loads(base64.b64decode(data["policy_class"][":serialized:"].encode()))
-    except Exception:  # any unreadable zip: SB3's load gives its own message
+    data = read_zip_data(path)
+    policy = saved_policy_class(data) if data is not None else None
+    if data is None or policy is None:  # any unreadable zip: SB3's load gives its own message
         return None
     return _policy_name(policy), data.get("intrinsic_reward")
 

@@ -10,7 +10,6 @@ import csv
 import io
 import json
 import os
-import zipfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -30,7 +29,7 @@ from sb3_saeir.common.run_files import (
     RESUME_LOG,
     SPEC_FILE,
 )
-from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, utc_stamp
+from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, read_zip_data, utc_stamp
 from sb3_saeir.common.utils import unwritable_folder
 from sb3_saeir.config import ConfigError, load_hyperparams
 from sb3_saeir.experiment import numbered_paths
@@ -379,9 +378,9 @@ def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
 def saved_timesteps(path: Path) -> int | None:
     """The agent-steps a saved model zip records (``num_timesteps`` in its ``data``), without loading it (``None``
     when the zip cannot be read)."""
+    data = read_zip_data(path)
     try:
-        with zipfile.ZipFile(path) as archive:
-            return int(json.loads(archive.read("data"))["num_timesteps"])
+        return int(data["num_timesteps"]) if data is not None else None
     except Exception:  # a damaged zip: checkpoint_problem names the damage
         return None
 

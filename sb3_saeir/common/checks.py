@@ -29,6 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
+from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
 from sb3_saeir.common.utils import check_bool, unwritable_folder
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
@@ -448,14 +449,10 @@ def saved_data(path: Any) -> dict[str, Any] | None:
         except (AttributeError, OSError):  # a file object that cannot go back: left to SB3
             return None
     try:
-        with zipfile.ZipFile(source) as archive:
-            data = json.loads(archive.read("data"))
-    except Exception:  # a damaged or foreign file: SB3's load names it
-        data = None
+        return read_zip_data(source)  # None for a damaged or foreign file: SB3's load names it
     finally:
         if position is not None:
             path.seek(position)
-    return data if isinstance(data, dict) else None
 
 
 def check_saved_model(algo_name: str, path: Any, data: dict[str, Any], env: Any) -> None:
@@ -469,7 +466,7 @@ def check_saved_model(algo_name: str, path: Any, data: dict[str, Any], env: Any)
     :param data: the zip's ``data`` (:func:`saved_data`)
     :param env: the ``env`` argument of ``load``
     """
-    foreign = _foreign_policy(data.get("policy_class"))
+    foreign = _foreign_policy(data)
     if foreign is not None:
         name, library = foreign
         raise ValueError(
@@ -481,25 +478,21 @@ def check_saved_model(algo_name: str, path: Any, data: dict[str, Any], env: Any)
         check_n_agents(algo_name, env, n_agents)
 
 
-def _foreign_policy(entry: Any) -> tuple[str, str] | None:
+def _foreign_policy(data: dict[str, Any]) -> tuple[str, str] | None:
     """The name of the policy class a zip's ``data`` holds (``policy_class``, as SB3 serialises a class) and its
     library (the top package of its module) when it is another library's: from a module outside the package and not a
     :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy` (a user's subclass is the package's); ``None``
     otherwise, or when the entry is not one SB3 writes.
 
-    :param entry: the ``policy_class`` entry of the zip's ``data``
+    :param data: the zip's ``data`` (:func:`~sb3_saeir.common.run_state.read_zip_data`)
     """
-    import base64
-
-    import cloudpickle
-
+    entry = data.get("policy_class")
     module = entry.get("__module__") if isinstance(entry, dict) else None
     if not isinstance(module, str) or module.split(".")[0] == "sb3_saeir":
         return None
     library = module.split(".")[0]
-    try:
-        policy_class = cloudpickle.loads(base64.b64decode(entry[":serialized:"].encode()))
-    except Exception:  # its module is not installed here, or the entry is damaged: named by its module
+    policy_class = saved_policy_class(data)
+    if policy_class is None:  # its module is not installed here, or the entry is damaged: named by its module
         return f"a class of {module}", library
     if isinstance(policy_class, type) and issubclass(policy_class, MultiAgentActorCriticPolicy):
         return None

@@ -11,6 +11,7 @@ request (Ctrl-C) into a checkpoint and a clean stop; :func:`progress_logger` con
 
 from __future__ import annotations
 
+import base64
 import csv
 import json
 import os
@@ -224,6 +225,32 @@ def load_resume_state(path: Path) -> dict[str, Any] | None:
             return None
         state: dict[str, Any] = cloudpickle.loads(archive.read(RESUME_ENTRY))
     return state if state.get("format") == RESUME_FORMAT else None
+
+
+def read_zip_data(source: Any) -> dict[str, Any] | None:
+    """The ``data`` entry of an SB3 model zip as JSON, without loading the model; ``None`` when it cannot be read (not a
+    zip, no ``data``, not a JSON object: SB3's ``load`` or :func:`checkpoint_problem` names the damage).
+
+    :param source: the zip: a path (read as given) or a binary file object (read from where it stands)
+    """
+    try:
+        with zipfile.ZipFile(source) as archive:
+            data = json.loads(archive.read("data"))
+    except Exception:  # a damaged or foreign file
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def saved_policy_class(data: dict[str, Any]) -> Any:
+    """The policy class a zip's ``data`` holds (``policy_class``, as SB3 serialises a class), ``None`` when it cannot be
+    rebuilt here (its module is not installed, or the entry is damaged).
+
+    :param data: the zip's ``data`` (:func:`read_zip_data`)
+    """
+    try:
+        return cloudpickle.loads(base64.b64decode(data["policy_class"][":serialized:"].encode()))
+    except Exception:
+        return None
 
 
 def checkpoint_problem(path: Path) -> str:

@@ -559,9 +559,9 @@ class MAPPO(OnPolicyAlgorithm):
             _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
         saved_policy = params.get("policy")
         owner = f"{type(self).__name__}.set_parameters"
-        if exact_match and isinstance(saved_policy, dict) and getattr(self, "policy", None) is not None:
-            checks.check_network_kind(owner, saved_policy, self.policy)
         if exact_match and getattr(self, "policy", None) is not None:
+            if isinstance(saved_policy, dict):
+                checks.check_network_kind(owner, saved_policy, self.policy)
             checks.check_parameter_names(owner, params, self)
         super().set_parameters(params, exact_match=exact_match, device=device)
 

@@ -9,7 +9,7 @@ From a benchmark run folder ``RUN`` whose ``progress.csv`` logged the bonus (``r
   rollouts and over their last 10%, the first and last value-softmax entropy), under the command that made it;
 - ``bonus.png``: the ``system_entropy.png`` that command writes into ``RUN``;
 - ``--name`` (default ``bonus_by_window.md``): per ``--window`` env steps the fire rate and mean bonus per scale and
-  each critic's value-softmax entropy (:func:`learning_speed.bonus_windows`).
+  each critic's value-softmax entropy, and the episode starts per env step (:func:`learning_speed.bonus_windows`).
 """
 
 from __future__ import annotations
@@ -62,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     window = f"{args.window / 1e6:g}M" if args.window >= 1e6 else f"{args.window / 1e3:g}k"
     heading = (
         f"Per {window} env steps: the bonus's fire rate and mean before beta per scale, and each critic's value-softmax "
-        f"entropy where the run logged it (`benchmarks/learning_speed.py ... --bonus {args.run.name}`):"
+        f"entropy where the run logged it, and the episode starts per env step (1 / mean episode length), which bounds "
+        f"a bonus that fires only at episode starts (`benchmarks/learning_speed.py ... --bonus {args.run.name}`):"
     )
     (args.target / args.name).write_text("\n".join([heading, "", *bonus_windows(args.run, args.window)]) + "\n")
     return 0

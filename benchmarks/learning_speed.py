@@ -12,7 +12,8 @@ seed) given twice are refused. The figures are computed from the evaluation rows
 statistics (:func:`sb3_saeir.benchmark.mann_whitney`, the IQM with rliable's stratified bootstrap): see
 ``docs/results.md``. Writes ``OUT/learning_speed.md`` and ``OUT/curves_seeds.png`` and prints the Markdown. With
 ``--bonus RUN_FOLDER ...`` it adds, per SAEIR run, the bonus's fire rate and mean size per scale averaged over each
-``--window`` env steps (from the run's ``progress.csv``).
+``--window`` env steps, the critics' value-softmax entropy and the episode starts per env step (from the run's
+``progress.csv``).
 
 Definitions (env steps are game steps, the x axis of the benchmark's curves):
 
@@ -261,8 +262,11 @@ def plot_seed_curves(curves: dict[tuple[str, str], dict[int, Curve]], path: Path
 
 def bonus_windows(run: Path, window: float) -> list[str]:
     """The SAEIR bonus's fire rate and mean size per scale, averaged over the rollouts of each ``window`` env steps,
-    and the entropy of each critic's value-softmax over the rollout window (``rollout/value_entropy_<scale>``) where
-    the run logged it.
+    the entropy of each critic's value-softmax over the rollout window (``rollout/value_entropy_<scale>``) where the
+    run logged it, and the episode starts per env step, ``1 / rollout/ep_len_mean``, where it logged episode lengths.
+
+    A bonus that fires only when a new episode starts inside the bonus window fires on at most that share of steps
+    (every agent of a game starts its episode together), so the last column bounds that kind of firing.
 
     :param run: a SAEIR run's folder (``progress.csv`` with ``rollout/intrinsic_fire_rate_<scale>``; ``spec.json``
         for the number of agents, since ``progress.csv`` counts agent-steps)
@@ -281,16 +285,24 @@ def bonus_windows(run: Path, window: float) -> list[str]:
     entropy_scales = [s for s in scales if f"rollout/value_entropy_{s}" in rows[0]]
     header = [f"fire rate {s}" for s in scales] + [f"bonus mean {s}" for s in scales]
     header += [f"value entropy {s}" for s in entropy_scales]
-    lines = [f"| env steps | {' | '.join(header)} |", "|---" * (len(header) + 1) + "|"]
     series = [numeric_series(rows, f"rollout/intrinsic_fire_rate_{s}") for s in scales]
     series += [numeric_series(rows, f"rollout/intrinsic_reward_mean_{s}") for s in scales]
     series += [numeric_series(rows, f"rollout/value_entropy_{s}") for s in entropy_scales]
-    env_steps = np.array(series[0][0]) / n_agents  # (n_rollouts,) agent-steps -> env steps
-    for start in np.arange(0.0, env_steps.max(), window):
-        inside = (env_steps > start) & (env_steps <= start + window)
-        if not inside.any():
+    if "rollout/ep_len_mean" in rows[0]:
+        header.append("episode starts per step")
+        steps, lengths = numeric_series(rows, "rollout/ep_len_mean")
+        series.append((steps, [1.0 / length for length in lengths]))
+    # each series keeps only the rows that logged it (an episode length appears once an episode has ended), so each is
+    # windowed by its own env steps
+    env_steps = [np.array(steps) / n_agents for steps, _ in series]  # per series (n_logged,): agent-steps -> env steps
+    lines = [f"| env steps | {' | '.join(header)} |", "|---" * (len(header) + 1) + "|"]
+    for start in np.arange(0.0, env_steps[0].max(), window):
+        if not ((env_steps[0] > start) & (env_steps[0] <= start + window)).any():
             continue
-        cells = [f"{np.mean(np.array(values)[inside]):.2e}" for _, values in series]
+        cells = []
+        for at, (_, values) in zip(env_steps, series):
+            inside = (at > start) & (at <= start + window)
+            cells.append(f"{np.mean(np.array(values)[inside]):.2e}" if inside.any() else "-")
         lines.append(f"| {_millions(start)}-{_millions(start + window)} | {' | '.join(cells)} |")
     return lines
 

@@ -20,7 +20,7 @@ def test_files_of_a_benchmark_run(bonus_files, tiny_saeir_benchmark_run, tmp_pat
     assert (target / "bonus.png").read_bytes() == (run / "system_entropy.png").read_bytes()
     windowed = (target / "bonus_by_50.md").read_text().splitlines()
     assert windowed[0].startswith("Per 0.05k env steps:")
-    assert windowed[2].endswith("| value entropy group | value entropy individual | value entropy team |")
+    assert windowed[2].endswith("| value entropy individual | value entropy team | episode starts per step |")
     # 450 agent-steps = 150 env steps in rollouts of 50: three windows of 50 env steps, one rollout each
     assert [line.split(" | ")[0] for line in windowed[4:]] == ["| 0M-5e-05M", "| 5e-05M-0.0001M", "| 0.0001M-0.00015M"]
 

@@ -179,6 +179,23 @@ def test_bonus_windows_average_per_window_in_env_steps(speed, tmp_path):
     assert lines[0] == "| env steps | fire rate team | bonus mean team | value entropy team |"
     assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 | 2.50e+00 |"
     assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 | 1.00e+00 |"
+    # with episode lengths logged, 1 / length per window: the first rollout ended no episode yet (empty cell), so
+    # the first window averages its second rollout alone, and a window without any length shows "-"
+    rows = list(csv.reader(open(run / "progress.csv")))
+    with open(run / "progress.csv", "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow([*rows[0], "rollout/ep_len_mean"])
+        for row, length in zip(rows[1:], ("", 4.0, 10.0, 40.0)):
+            writer.writerow([*row, length])
+    lines = speed.bonus_windows(run, window=2.0)
+    assert lines[0] == "| env steps | fire rate team | bonus mean team | value entropy team | episode starts per step |"
+    assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 | 2.50e+00 | 2.50e-01 |"
+    assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 | 1.00e+00 | 6.25e-02 |"  # (1/10 + 1/40) / 2
+    rows = list(csv.reader(open(run / "progress.csv")))
+    with open(run / "progress.csv", "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerows([rows[0], *[[*row[:-1], ""] for row in rows[1:3]], *rows[3:]])
+    assert speed.bonus_windows(run, window=2.0)[2].endswith(" | 2.50e+00 | - |")
 
 
 def test_iqm_interval_is_the_aggregate_tables(speed):

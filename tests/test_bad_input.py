@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import ActorCriticPolicy
 
@@ -181,7 +182,14 @@ def test_observations_of_any_numeric_dtype_train(dtype):
 
     env = make_multiagent_vec_env(Typed, n_games=2, seed=0)
     for algo in (SAEIR_PPO, MAPPO):
-        algo("MSHGPolicy", env, n_steps=6, n_epochs=1, policy_kwargs=dict(hidden_size=8)).learn(2 * 6 * env.num_envs)
+        model = algo("MSHGPolicy", env, n_steps=6, n_epochs=1, policy_kwargs=dict(hidden_size=8))
+        before = [p.detach().clone() for p in model.policy.parameters()]
+        model.learn(2 * 6 * env.num_envs)
+        assert model.num_timesteps == 2 * 6 * env.num_envs
+        after = list(model.policy.parameters())
+        assert all(th.isfinite(p).all() for p in after)
+        assert any(not th.equal(b, a) for b, a in zip(before, after))  # the updates read the observations as floats
+        assert model.rollout_buffer.observations.dtype == np.float32
     env.close()
 
 

@@ -102,8 +102,12 @@ def test_custom_env_example_game():
 
 
 def test_custom_intrinsic_reward_script():
-    # the script's own budget is 20k agent-steps; it runs as written (about 10 s)
-    run_example("custom_intrinsic_reward")
+    # the script's own budget is 20k agent-steps; it runs as written (about 10 s) and its logs show the bonus
+    stdout = run_example("custom_intrinsic_reward")
+    bonus_means = [float(line.split("|")[2]) for line in stdout.splitlines() if "count_reward_mean" in line]
+    assert bonus_means and all(0 < mean <= 1 for mean in bonus_means)  # 1 / sqrt(visits) of the rollout's cells
+    steps = [int(line.split("|")[2]) for line in stdout.splitlines() if "total_timesteps" in line]
+    assert steps[-1] >= 20_000
 
 
 @pytest.mark.football

@@ -371,7 +371,12 @@ def test_native_vec_env_trains_with_ppo():
     from stable_baselines3 import PPO
 
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, N=3, continuous_actions=True)
-    PPO("MlpPolicy", env, n_steps=25, batch_size=50, n_epochs=1, seed=0, device="cpu").learn(150)
+    model = PPO("MlpPolicy", env, n_steps=25, batch_size=50, n_epochs=1, seed=0, device="cpu").learn(150)
+    assert model.num_timesteps == 150  # one rollout of 25 steps x 6 agent slots
+    assert model.logger.name_to_value["train/n_updates"] == 1
+    actions, _ = model.predict(env.reset(), deterministic=True)
+    assert actions.shape == (env.num_envs, *env.action_space.shape)
+    env.close()
 
 
 # ------------------------------------------------------------------------------------------------ backend choice

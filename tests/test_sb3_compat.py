@@ -64,7 +64,10 @@ def test_vec_normalize_wraps():
 @pytest.mark.parametrize("num_cpus", [2])
 def test_ppo_with_subprocess_games(num_cpus):
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, num_cpus=num_cpus)
-    PPO("MlpPolicy", env, n_steps=25, batch_size=50, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[8])).learn(150)
+    model = PPO("MlpPolicy", env, n_steps=25, batch_size=50, n_epochs=1, seed=0, policy_kwargs=dict(net_arch=[8]))
+    model.learn(150)
+    assert model.num_timesteps == 150  # one rollout of 25 steps x 6 agent slots, stepped in 2 worker processes
+    assert model.logger.name_to_value["train/n_updates"] == 1
     env.close()
 
 

@@ -6,6 +6,7 @@ silent acceptance, and the serious ones (``5e-4`` read as a string, a model of a
 """
 
 import hashlib
+import os
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ import yaml
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.benchmark import main as benchmark_main
 from sb3_saeir.benchmark import parse_seeds
+from sb3_saeir.common.utils import unwritable_folder
 from sb3_saeir.config import ConfigError, load_hyperparams, parse_params
 from sb3_saeir.enjoy import main as enjoy_main
 from sb3_saeir.train import main as train_main
@@ -368,6 +370,20 @@ def test_log_folder_that_cannot_be_created(root, capsys, folder):
     message = f"-f/--log-folder {folder}: "  # /proc: no file can be created in /proc; /sys: /sys is not writable
     assert_refused(train_main, [*TRAIN, "-f", folder], message, capsys, root)
     assert_refused(zoo_main, [*ZOO_TRAIN, "-f", folder, "-conf", zoo_conf(root)], message, capsys, root)
+
+
+def test_the_writability_check_leaves_the_folder_as_it_was(tmp_path):
+    """The probe file of the writability check changed the folder's modification time: a refused ``--resume`` left
+    the run folder looking newer than its files."""
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "spec.json").write_text("{}")
+    os.utime(folder, ns=(1_000_000_000_000_000_000, 1_500_000_000_000_000_000))  # 2001 and 2017
+    assert unwritable_folder(folder) == ""
+    assert unwritable_folder(folder / "not" / "made" / "yet") == ""  # probes the nearest existing folder, run/
+    times = folder.stat()
+    assert (times.st_atime_ns, times.st_mtime_ns) == (1_000_000_000_000_000_000, 1_500_000_000_000_000_000)
+    assert sorted(path.name for path in folder.iterdir()) == ["spec.json"]  # no probe left, no folder made
 
 
 def test_output_files_and_folders_the_os_refuses(root, models, capsys):

@@ -91,8 +91,9 @@ def check_seed(owner: str, seed: Any, name: str = "seed", hint: str = " (or None
 def unwritable_folder(folder: str | os.PathLike) -> str:
     """Why no file could be written in ``folder`` (created with its missing parents, as the writers do), or ``""``.
 
-    The nearest existing folder is tried with a probe file, removed at once: permission bits alone pass for root
-    where the file system refuses (``/proc``, ``/sys``, a read-only mount).
+    The nearest existing folder is tried with a probe file, removed at once, and the folder's access and modification
+    times are put back (a check changes nothing a user sees): permission bits alone pass for root where the file
+    system refuses (``/proc``, ``/sys``, a read-only mount).
 
     :param folder: the folder a file is to be written in (it need not exist yet)
     :return: one clause naming the folder and the problem, or ``""`` when a file can be written
@@ -103,10 +104,15 @@ def unwritable_folder(folder: str | os.PathLike) -> str:
         return f"{existing} is a file, not a folder"
     if not os.access(existing, os.W_OK | os.X_OK):
         return f"{existing} is not writable"
+    times = existing.stat()
     try:
         handle, probe = tempfile.mkstemp(dir=existing, prefix=".sb3_saeir-write-test-")
     except OSError as error:
         return f"no file can be created in {existing} ({error.strerror})"
     os.close(handle)
     os.remove(probe)
+    try:
+        os.utime(existing, ns=(times.st_atime_ns, times.st_mtime_ns))
+    except OSError:  # a folder the user may write in but not own: its times stay as the probe left them
+        pass
     return ""

@@ -8,6 +8,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.policies import MAPPOPolicy, SNMAPPOPolicy
+from sb3_saeir.common.policy_arguments import default_optimizer_kwargs
 from sb3_saeir.common.torch_layers import RecurrentValueCritic
 from sb3_saeir.intrinsic import saeir_bonus
 from sb3_saeir.mappo.losses import clipped_value_loss
@@ -97,6 +98,10 @@ def test_default_optimizer_is_fused_adam_and_steps_as_adam(env):
     assert custom.policy.optimizer.defaults["eps"] == 1e-8 and custom.policy.optimizer.defaults["fused"] is None
     rmsprop = MAPPO("MlpPolicy", env, policy_kwargs=dict(optimizer_class=th.optim.RMSprop))
     assert rmsprop.policy.optimizer.defaults["foreach"] is True and rmsprop.policy.optimizer.defaults["eps"] == 1e-5
+    # a class without eps (SGD) gets only what its constructor takes: it crashed with SGD's TypeError on eps
+    sgd = MAPPO("MlpPolicy", env, learning_rate=0.1, policy_kwargs=dict(optimizer_class=th.optim.SGD))
+    assert sgd.policy.optimizer.defaults["foreach"] is True and "eps" not in sgd.policy.optimizer.defaults
+    assert default_optimizer_kwargs(th.optim.LBFGS) == {}  # neither keyword
 
 
 def test_joint_critic_sees_the_concatenation_and_gives_one_value_per_game():

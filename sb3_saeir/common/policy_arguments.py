@@ -3,6 +3,7 @@ arguments they refuse or accept only as no-ops, their optimizer defaults, and ``
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from typing import Any
 
@@ -77,14 +78,22 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
 def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[str, Any]:
     """The policies' optimizer kwargs when none are given: MAPPO's ``eps=1e-5``, and PyTorch's fused kernel for Adam
     and AdamW (one kernel over all parameter tensors instead of several multi-tensor ``_foreach_*`` ops; the same
-    update up to float rounding, ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes.
+    update up to float rounding, ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes. A class
+    is given only the keywords its constructor takes (``torch.optim.SGD`` has no ``eps``: it gets ``foreach`` alone).
 
     :param optimizer_class: the policy's optimizer class
     :return: the keyword arguments the optimizer is built with
     """
     if optimizer_class in (th.optim.Adam, th.optim.AdamW):
         return {"eps": 1e-5, "fused": True}
-    return {"eps": 1e-5, "foreach": True}
+    defaults = {"eps": 1e-5, "foreach": True}
+    try:
+        accepted = inspect.signature(optimizer_class).parameters
+    except (TypeError, ValueError):  # no signature to read: PyTorch's defaults
+        return {}
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in accepted.values()):
+        return defaults
+    return {name: value for name, value in defaults.items() if name in accepted}
 
 
 DEFAULT_GROUP_SIZE = 2  # k of the group scale (the authors' ``num_in_group``)

@@ -12,6 +12,7 @@ from functools import partial
 
 import numpy as np
 import pytest
+import torch as th
 from gymnasium import spaces
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
@@ -84,6 +85,40 @@ def test_string_boolean_refused(env, tiny_kwargs, where, name, value):
     with pytest.raises(ValueError) as error:
         SAEIR_PPO("MSHGPolicy", env, **kwargs)
     one_line(error, name, "must be True or False")
+
+
+BAD_OPTIMIZER_ARGUMENTS = {
+    "class-by-name": ({"optimizer_class": "adam"}, ["optimizer_class='adam' is not a PyTorch optimizer class", "the class"]),
+    "class-not-optimizer": ({"optimizer_class": th.nn.Linear}, ["is not a PyTorch optimizer class", "torch.optim.Adam"]),
+    "kwargs-not-dict": ({"optimizer_kwargs": [("eps", 1e-5)]}, ["is not a dict of keyword arguments"]),
+    "kwargs-lr": ({"optimizer_kwargs": {"lr": 0.1}}, ["optimizer_kwargs sets 'lr'", "pass learning_rate="]),
+    "kwargs-params": ({"optimizer_kwargs": {"params": []}}, ["optimizer_kwargs sets 'params'", "remove it"]),
+    "kwargs-unknown": ({"optimizer_kwargs": {"epsilon": 1e-5}}, ["'epsilon', which Adam does not take", "eps"]),
+    "kwargs-of-another-class": (
+        {"optimizer_class": th.optim.SGD, "optimizer_kwargs": {"betas": (0.9, 0.99)}},
+        ["'betas', which SGD does not take", "momentum"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OPTIMIZER_ARGUMENTS))
+def test_optimizer_arguments_are_checked(env, tiny_kwargs, case):
+    """PyTorch's messages named neither argument ("'str' object is not callable", "got multiple values for keyword
+    argument 'lr'", "unexpected keyword argument"); each is now one line naming the argument and the fix."""
+    policy_kwargs, words = BAD_OPTIMIZER_ARGUMENTS[case]
+    with pytest.raises(ValueError) as error:
+        MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": {"hidden_size": 8, **policy_kwargs}})
+    one_line(error, "MAPPOPolicy: optimizer_", *words)
+
+
+def test_optimizer_arguments_that_fit_pass(env, tiny_kwargs):
+    """The positive control: an optimizer class's own keywords pass, on Adam and on SGD."""
+    for fitting in (
+        {"optimizer_kwargs": {"eps": 1e-6}},
+        {"optimizer_class": th.optim.SGD, "optimizer_kwargs": {"momentum": 0.9}},
+    ):
+        model = MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": {"hidden_size": 8, **fitting}})
+        assert all(model.policy.optimizer.defaults[key] == value for key, value in fitting["optimizer_kwargs"].items())
 
 
 def test_string_boolean_refused_by_callback():

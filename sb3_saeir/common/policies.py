@@ -28,8 +28,8 @@ from sb3_saeir.common.compilation import compile_network, mark_dynamic
 from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.policy_arguments import (
     DEFAULT_GROUP_SIZE,
+    check_optimizer_arguments,
     check_sb3_policy_kwargs,
-    default_optimizer_kwargs,
     default_scales,
     warn_degenerate_group_scale,
 )
@@ -78,10 +78,12 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         ``False`` uses the plain softmax (deterministic critics)
     :param log_std_init: initial log standard deviation of the Gaussian action head (continuous actions)
     :param ortho_init: orthogonal initialisation; only ``True`` (the paper's) is supported, ``False`` raises
-    :param optimizer_class: optimizer class
-    :param optimizer_kwargs: optimizer kwargs (default:
+    :param optimizer_class: optimizer class, a subclass of ``torch.optim.Optimizer``
+    :param optimizer_kwargs: optimizer kwargs, the class's own keywords except ``lr`` (the model's ``learning_rate``)
+        and ``params``, checked before the networks are built
+        (:func:`~sb3_saeir.common.policy_arguments.check_optimizer_arguments`); default:
         :func:`~sb3_saeir.common.policy_arguments.default_optimizer_kwargs`, ``eps=1e-5`` as MAPPO with ``fused=True``
-        for Adam and AdamW)
+        for Adam and AdamW
     :param sb3_kwargs: SB3 ``ActorCriticPolicy`` arguments, accepted only with their default value (SB3 passes them
         when it rebuilds a saved policy); ``net_arch``, ``features_extractor_class``, ``use_sde`` or
         ``share_features_extractor=False`` raise a ``ValueError`` naming what to use instead, as does any unknown key
@@ -135,8 +137,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
         self.compile_backend: str | None = None
         self._compiled_actor: Callable[..., Any] | None = None
         self._compiled_critics: dict[str, Callable[..., Any]] = {}
-        if optimizer_kwargs is None:
-            optimizer_kwargs = default_optimizer_kwargs(optimizer_class)
+        optimizer_kwargs = check_optimizer_arguments(type(self).__name__, optimizer_class, optimizer_kwargs)
         super().__init__(
             observation_space,
             action_space,

@@ -1,5 +1,6 @@
 """The arguments of the multi-agent policies (:mod:`sb3_saeir.common.policies`): the SB3 ``ActorCriticPolicy``
-arguments they refuse or accept only as no-ops, their optimizer defaults, and ``MSHGPolicy``'s default critic scales."""
+arguments they refuse or accept only as no-ops, the checks of their optimizer arguments and their optimizer defaults, and
+``MSHGPolicy``'s default critic scales."""
 
 from __future__ import annotations
 
@@ -73,6 +74,53 @@ def check_sb3_policy_kwargs(policy_name: str, sb3_kwargs: dict[str, Any], ortho_
             )
         hint = _UNSUPPORTED_SB3_ARGUMENTS.get(key, "remove the argument")
         raise ValueError(f"{policy_name}: policy argument {key}={value!r} is not supported: {hint}.")
+
+
+def check_optimizer_arguments(
+    policy_name: str, optimizer_class: Any, optimizer_kwargs: dict[str, Any] | None
+) -> dict[str, Any]:
+    """Check ``optimizer_class`` and ``optimizer_kwargs`` before the networks are built, and give the kwargs the
+    optimizer is built with (:func:`default_optimizer_kwargs` when ``None``). PyTorch's own messages named neither
+    argument (``'str' object is not callable``, ``got multiple values for keyword argument 'lr'``).
+
+    :param policy_name: class name for the message
+    :param optimizer_class: the ``optimizer_class`` argument: a subclass of ``torch.optim.Optimizer``
+    :param optimizer_kwargs: the ``optimizer_kwargs`` argument: ``None`` or a dict of the class's keyword arguments,
+        without ``params`` and ``lr`` (the model's ``learning_rate`` sets the learning rate)
+    :return: the keyword arguments the optimizer is built with
+    :raises ValueError: for a class that is not an optimizer, kwargs that are not a dict, ``params`` or ``lr`` among
+        them, or a keyword the class does not take
+    """
+    if not (isinstance(optimizer_class, type) and issubclass(optimizer_class, th.optim.Optimizer)):
+        raise ValueError(
+            f"{policy_name}: optimizer_class={optimizer_class!r} is not a PyTorch optimizer class; pass a subclass of "
+            "torch.optim.Optimizer, e.g. optimizer_class=torch.optim.Adam (the class, not its name)."
+        )
+    if optimizer_kwargs is None:
+        return default_optimizer_kwargs(optimizer_class)
+    if not isinstance(optimizer_kwargs, dict) or not all(isinstance(key, str) for key in optimizer_kwargs):
+        raise ValueError(
+            f"{policy_name}: optimizer_kwargs={optimizer_kwargs!r} is not a dict of keyword arguments; pass e.g. "
+            "optimizer_kwargs=dict(eps=1e-5)."
+        )
+    if "lr" in optimizer_kwargs or "params" in optimizer_kwargs:
+        key = "lr" if "lr" in optimizer_kwargs else "params"
+        fix = "pass learning_rate= to the algorithm (a float or a schedule)" if key == "lr" else "remove it"
+        raise ValueError(f"{policy_name}: optimizer_kwargs sets {key!r}, which the policy sets itself; {fix}.")
+    try:
+        accepted = inspect.signature(optimizer_class).parameters
+    except (TypeError, ValueError):  # no signature to read: the class itself will check
+        return dict(optimizer_kwargs)
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in accepted.values()):
+        return dict(optimizer_kwargs)
+    unknown = sorted(set(optimizer_kwargs) - set(accepted))
+    if unknown:
+        takes = ", ".join(name for name in accepted if name not in ("self", "params", "lr"))
+        raise ValueError(
+            f"{policy_name}: optimizer_kwargs has {', '.join(map(repr, unknown))}, which "
+            f"{optimizer_class.__name__} does not take; it takes: {takes}."
+        )
+    return dict(optimizer_kwargs)
 
 
 def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[str, Any]:

@@ -153,6 +153,13 @@ def test_same_run_in_two_files_is_refused(speed, tmp_path):
         speed.main([str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--out", str(tmp_path / "out")])
 
 
+def add_progress_column(run, name, values):
+    """Append the column ``name`` with one value per rollout (``""``: not logged that rollout) to ``progress.csv``."""
+    rows = list(csv.reader(open(run / "progress.csv")))
+    with open(run / "progress.csv", "w", newline="") as file:
+        csv.writer(file).writerows([[*rows[0], name], *[[*row, value] for row, value in zip(rows[1:], values)]])
+
+
 def test_bonus_windows_average_per_window_in_env_steps(speed, tmp_path):
     run = tmp_path / "run"
     run.mkdir()
@@ -169,32 +176,22 @@ def test_bonus_windows_average_per_window_in_env_steps(speed, tmp_path):
     assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 |"
     assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 |"
     # with the value-softmax entropy logged, its mean per window comes after the bonus
-    rows = list(csv.reader(open(run / "progress.csv")))
-    with open(run / "progress.csv", "w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow([*rows[0], "rollout/value_entropy_team"])
-        for row, entropy in zip(rows[1:], (3.0, 2.0, 1.5, 0.5)):
-            writer.writerow([*row, entropy])
+    add_progress_column(run, "rollout/value_entropy_team", (3.0, 2.0, 1.5, 0.5))
     lines = speed.bonus_windows(run, window=2.0)
     assert lines[0] == "| env steps | fire rate team | bonus mean team | value entropy team |"
     assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 | 2.50e+00 |"
     assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 | 1.00e+00 |"
     # with episode lengths logged, 1 / length per window: the first rollout ended no episode yet (empty cell), so
-    # the first window averages its second rollout alone, and a window without any length shows "-"
-    rows = list(csv.reader(open(run / "progress.csv")))
-    with open(run / "progress.csv", "w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow([*rows[0], "rollout/ep_len_mean"])
-        for row, length in zip(rows[1:], ("", 4.0, 10.0, 40.0)):
-            writer.writerow([*row, length])
+    # the first window averages its second rollout alone
+    add_progress_column(run, "rollout/ep_len_mean", ("", 4.0, 10.0, 40.0))
     lines = speed.bonus_windows(run, window=2.0)
     assert lines[0] == "| env steps | fire rate team | bonus mean team | value entropy team | episode starts per step |"
     assert lines[2] == "| 0M-2e-06M | 2.00e-01 | 4.00e-01 | 2.50e+00 | 2.50e-01 |"
     assert lines[3] == "| 2e-06M-4e-06M | 6.00e-01 | 1.20e+00 | 1.00e+00 | 6.25e-02 |"  # (1/10 + 1/40) / 2
+    # a window in which no rollout logged a length shows "-"
     rows = list(csv.reader(open(run / "progress.csv")))
     with open(run / "progress.csv", "w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerows([rows[0], *[[*row[:-1], ""] for row in rows[1:3]], *rows[3:]])
+        csv.writer(file).writerows([rows[0], *[[*row[:-1], ""] for row in rows[1:3]], *rows[3:]])
     assert speed.bonus_windows(run, window=2.0)[2].endswith(" | 2.50e+00 | - |")
 
 

@@ -247,6 +247,29 @@ def test_tensorboard_log_that_is_a_file(env, tiny_kwargs, tmp_path):
     assert log_file.read_text() == "not a folder" and sorted(tmp_path.iterdir()) == [log_file]
 
 
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"tensorboard_log": 3}, ["tensorboard_log=3 is not a folder path", "or None"]),
+        ({"verbose": "1"}, ["verbose='1' is not a verbosity level", "pass 0 (silent), 1 (info) or 2 (debug)"]),
+        ({"verbose": -1}, ["verbose=-1 is not a verbosity level"]),
+    ],
+    ids=["tensorboard_log-int", "verbose-str", "verbose-negative"],
+)
+def test_tensorboard_log_and_verbose_of_the_wrong_type(env, tiny_kwargs, tmp_path, kwargs, words):
+    """Each ended in a TypeError naming no argument (``expected str, bytes or os.PathLike object``, ``'>=' not
+    supported``), the first at construction, the second at ``learn``; at ``load`` too they are refused."""
+    with pytest.raises(ValueError) as error:
+        MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, **kwargs})
+    one_line(error, "MAPPO: ", *words)
+    path = tmp_path / "model.zip"
+    MAPPO("MAPPOPolicy", env, **tiny_kwargs).save(path)
+    with pytest.raises(ValueError) as error:
+        MAPPO.load(path, env=env, **kwargs)
+    one_line(error, "MAPPO: ", *words)
+    assert MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "verbose": True}).verbose is True  # as 1 in SB3
+
+
 # ------------------------------------------------------------------------------------------------ raw library errors
 @pytest.fixture
 def model(env, tiny_kwargs):

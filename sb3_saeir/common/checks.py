@@ -85,7 +85,7 @@ def check_ranges(algo_name: str, **values: Any) -> None:
 
 def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool = False) -> None:
     """The constructor's checks on the values ``load`` sets without the constructor (``kwargs`` and
-    ``custom_objects``): ranges, booleans, ``value_loss``, ``double_buffered`` and ``tensorboard_log``.
+    ``custom_objects``): ranges, booleans, ``value_loss``, ``double_buffered``, ``tensorboard_log`` and ``verbose``.
 
     :param algo_name: class name for the message
     :param overrides: argument name -> value
@@ -101,6 +101,8 @@ def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool =
         check_double_buffered(algo_name, overrides["double_buffered"])
     if "tensorboard_log" in overrides:
         check_tensorboard_log(algo_name, overrides["tensorboard_log"])
+    if "verbose" in overrides:
+        check_verbose(algo_name, overrides["verbose"])
 
 
 def check_value_loss(algo_name: str, value_loss: Any) -> None:
@@ -356,6 +358,17 @@ def check_device(owner: str, device: Any, cpu_fallback: bool = True) -> None:
     warnings.warn(f"{named} but CUDA is not available; training on the CPU.", UserWarning, stacklevel=3)
 
 
+def check_verbose(algo_name: str, verbose: Any) -> None:
+    """Refuse a ``verbose`` that is not a whole number from 0 up (SB3 compares it with ``>=`` at ``learn``: a string
+    ended there in a ``TypeError`` naming no argument). ``True`` and ``False`` pass, as 1 and 0 do in SB3.
+
+    :param algo_name: class name for the message
+    :param verbose: ``verbose`` argument
+    """
+    if not isinstance(verbose, (int, np.integer)) or verbose < 0:
+        raise ValueError(f"{algo_name}: verbose={verbose!r} is not a verbosity level; pass 0 (silent), 1 (info) or 2 (debug).")
+
+
 def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
     """Refuse a ``tensorboard_log`` that is an existing file or a folder where no file can be written (``/proc/tb``,
     a read-only mount: the probe of :func:`~sb3_saeir.common.utils.unwritable_folder`, as ``-tb`` of the command
@@ -366,6 +379,11 @@ def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
     """
     if tensorboard_log is None:
         return
+    if not isinstance(tensorboard_log, (str, os.PathLike)):
+        raise ValueError(
+            f"{algo_name}: tensorboard_log={tensorboard_log!r} is not a folder path; pass a path such as "
+            "'./tensorboard/' (or None)."
+        )
     if os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
         raise ValueError(
             f"{algo_name}: tensorboard_log={str(tensorboard_log)!r} is an existing file, not a folder; pass a folder path."

@@ -194,6 +194,7 @@ class MAPPO(OnPolicyAlgorithm):
         # built once: the callback learn() adds (docs/guide/algorithms.md)
         self._bonus = checks.check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
         checks.check_tensorboard_log(type(self).__name__, tensorboard_log)
+        checks.check_verbose(type(self).__name__, verbose)
         checks.check_device(type(self).__name__, device)
         checks.check_double_buffered(type(self).__name__, double_buffered)
         checks.check_value_loss(type(self).__name__, value_loss)

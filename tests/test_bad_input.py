@@ -220,7 +220,7 @@ BAD_COMMAND_LINES = [
     (["-params", "n_epochs:0"], "n_epochs=0 is out of range"),
     (["-params", "policy_kwargs:{hiden_size: 8}"], "unknown policy argument 'hiden_size'"),
     (["-params", "policy_kwargs:dict(net_arch=[64])"], "net_arch=[64] is not supported"),
-    (["-params", "env_kwargs:{N: 3, radius: 0.2}"], "unexpected keyword argument 'radius'"),
+    (["-params", "env_kwargs:{N: 3, radius: 0.2}"], "'radius' is not an argument of the task's constructor"),
     (["-params", "env_kwargs:{N: 3, world: mpe3}"], "world"),
     (["-params", "no_such_key:1"], "unknown config key 'no_such_key'"),
     (["-params", "policy_kwargs:dict(hidden_size=)"], "cannot evaluate 'dict(hidden_size=)': SyntaxError"),

@@ -441,3 +441,36 @@ def test_football_rewards_checked_before_gfootball(monkeypatch, build, rewards):
             make_multiagent_vec_env("grf-3v1-keeper", n_games=1, rewards=rewards)
     message = _one_line(excinfo, f"rewards={rewards!r}")
     assert "'scoring,checkpoints'" in message
+
+
+@pytest.mark.parametrize(
+    "task, kwargs, constructor, takes",
+    [
+        ("cn-sparse-n3", {"radius": 0.2}, "SparseCooperativeNavigation", "N, max_cycles"),  # the native vec env's path
+        ("cn-sparse-n3", {"radius": 0.2, "backend": "supersuit"}, "SparseCooperativeNavigation", "cover_radius"),
+        ("cn-sparse-n3", {"radius": 0.2, "num_cpus": 2}, "SparseCooperativeNavigation", "world, reward"),  # workers
+        (ToyMeetEnv, {"n_agent": 2}, "ToyMeetEnv", "n_agents, max_cycles"),  # a user's constructor
+    ],
+    ids=["native", "supersuit", "workers", "callable"],
+)
+def test_a_task_argument_the_constructor_does_not_take_is_named_with_those_it_takes(task, kwargs, constructor, takes):
+    """The constructor's TypeError named the keyword but not the ones it takes, and in env workers it came from
+    another process; it is now one line, before any game is built."""
+    with pytest.raises(ValueError) as excinfo:
+        make_multiagent_vec_env(task, n_games=2, **kwargs)
+    unknown = next(key for key in kwargs if key not in ("backend", "num_cpus"))
+    message = _one_line(excinfo, f"{unknown!r} is not an argument of the task's constructor {constructor}; it takes: ")
+    assert takes in message
+
+
+def test_a_constructor_that_takes_any_keyword_gets_them_unchecked():
+    """A constructor with ``**kwargs`` checks its own keywords: they pass through as before."""
+    seen = {}
+
+    def build(**kwargs):
+        seen.update(kwargs)
+        return ToyMeetEnv(n_agents=kwargs.get("n_agents", 3))
+
+    env = make_multiagent_vec_env(build, n_games=2, n_agents=2, anything=1)
+    assert env.n_agents == 2 and seen == {"n_agents": 2, "anything": 1}
+    env.close()

@@ -7,12 +7,13 @@ A task's native vec env (all games in this process), the PettingZoo games in thi
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from typing import Any
 
 from pettingzoo.utils.env import ParallelEnv
 
-from sb3_saeir.common.registry import get_native_vec_env_factory, get_task_factory
+from sb3_saeir.common.registry import VEC_ENV_KEYS, get_native_vec_env_factory, get_task_factory, get_task_spec
 from sb3_saeir.common.utils import check_seed, usable_cores
 from sb3_saeir.common.vec_env.base import GroupedVecEnv
 from sb3_saeir.common.vec_env.game_checks import ParallelEnvFactory, check_vec_env_options
@@ -64,6 +65,7 @@ def make_multiagent_vec_env(
     """
     check_vec_env_options(n_games, num_cpus, mark_truncation, check_finite)
     seed = check_seed("make_multiagent_vec_env", seed)
+    check_task_kwargs(task, task_kwargs)
     if backend not in VEC_ENV_BACKENDS:
         raise ValueError(f"backend must be one of {VEC_ENV_BACKENDS[1:]} or None (the task's default), got {backend!r}.")
     native = _native_vec_env_factory(task, backend, num_cpus)
@@ -84,6 +86,38 @@ def make_multiagent_vec_env(
     if seed is not None:
         vec_env.seed(seed)
     return vec_env
+
+
+def check_task_kwargs(task: Any, task_kwargs: dict[str, Any]) -> None:
+    """Refuse task keyword arguments the task's game constructor does not take, listing those it takes, before any
+    game is built (in env workers the constructor's ``TypeError`` came from another process).
+
+    :param task: a registered task id or a callable returning a ParallelEnv (another value is refused later)
+    :param task_kwargs: the keyword arguments for the task constructor
+    :raises ValueError: for a keyword the constructor does not take (one without ``**kwargs`` whose signature can be
+        read; others are left to the constructor)
+    """
+    if isinstance(task, str):
+        constructor = get_task_spec(task).load()  # an unknown task id: its KeyError names the registered ones
+    elif callable(task):
+        constructor = task
+    else:
+        return
+    try:
+        parameters = inspect.signature(constructor).parameters
+    except (TypeError, ValueError):  # no signature to read (a builtin): the constructor checks its own arguments
+        return
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in parameters.values()):
+        return
+    unknown = sorted(set(task_kwargs) - set(parameters) - set(VEC_ENV_KEYS))
+    if unknown:
+        keyword_kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+        takes = ", ".join(name for name, parameter in parameters.items() if parameter.kind in keyword_kinds) or "none"
+        name = getattr(constructor, "__name__", repr(constructor))
+        raise ValueError(
+            f"make_multiagent_vec_env({task!r}): {', '.join(map(repr, unknown))} is not an argument of the task's "
+            f"constructor {name}; it takes: {takes}."
+        )
 
 
 def _native_vec_env_factory(task: Any, backend: str | None, num_cpus: int) -> Any:

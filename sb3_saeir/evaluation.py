@@ -13,6 +13,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import atomic_file, save_model
 from sb3_saeir.common.run_state import resumable_env
+from sb3_saeir.common.utils import unwritable_folder
 from sb3_saeir.common.vec_env import is_multiagent_vec_env
 
 
@@ -80,8 +81,10 @@ def evaluate_multiagent_policy(
     """
     if not is_multiagent_vec_env(env):
         raise TypeError("evaluate_multiagent_policy needs an env from sb3_saeir.make_multiagent_vec_env.")
-    if n_episodes < 1:
-        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}.")
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, (int, np.integer)) or n_episodes < 1:
+        raise ValueError(
+            f"evaluate_multiagent_policy: n_episodes (game episodes) must be an integer >= 1, got {n_episodes!r}."
+        )
     n_games, n_agents = env.n_games, env.n_agents  # type: ignore[attr-defined]
     targets = np.array([(n_episodes + g) // n_games for g in range(n_games)])  # sums to n_episodes
     counts = np.zeros(n_games, dtype=int)
@@ -116,12 +119,23 @@ def summarise_episodes(episodes: list[dict[str, float]]) -> dict[str, float]:
 
 
 def score(summary: dict[str, float], metric: str) -> float:
-    """The value of a task's main metric in an evaluation summary (``"r"``: the team return); ``-inf`` if absent.
+    """The value of a task's main metric in an evaluation summary (``"r"``: the team return).
 
     :param summary: a summary from :func:`evaluate_multiagent_policy`
     :param metric: the task's main metric (``coverage_rate``, ``success`` or ``r``)
+    :raises ValueError: when no evaluated episode recorded ``metric`` (a misspelt ``main_metric`` scored every
+        evaluation ``-inf``, so no best model was ever kept)
     """
-    return summary["ep_rew_mean"] if metric == "r" else summary.get(f"{metric}_mean", -np.inf)
+    if metric == "r":
+        return summary["ep_rew_mean"]
+    if f"{metric}_mean" not in summary:
+        recorded = sorted(key[: -len("_mean")] for key in summary if key.endswith("_mean"))
+        metrics = [key for key in recorded if key not in ("ep_rew", "ep_len")]
+        raise ValueError(
+            f"main_metric={metric!r} is not recorded by the evaluated episodes; pass one they record "
+            f"({', '.join(metrics) or 'none'}) or 'r' for the team return."
+        )
+    return summary[f"{metric}_mean"]
 
 
 def metric_name(key: str) -> str:
@@ -171,6 +185,16 @@ class MultiAgentEvalCallback(EventCallback):
             raise ValueError(
                 f"eval_freq must be an integer >= 0 agent-steps (0: only explicit evaluate()), got {eval_freq!r}."
             )
+        for name, path in (("log_path", log_path), ("best_model_save_path", best_model_save_path)):
+            if path is None:
+                continue
+            if not isinstance(path, (str, os.PathLike)):
+                raise ValueError(f"MultiAgentEvalCallback: {name}={path!r} is not a folder path; pass a folder (or None).")
+            problem = unwritable_folder(path)  # checked now, not at the first evaluation
+            if problem:
+                raise ValueError(
+                    f"MultiAgentEvalCallback: {name}={str(path)!r}: {problem}; pass a folder you can write (or None)."
+                )
         self.eval_env = eval_env
         self.n_eval_episodes = n_eval_episodes
         self.eval_freq = eval_freq

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.evaluation import RandomMultiAgentPolicy, evaluate_multiagent_policy
+from sb3_saeir import MAPPO, make_multiagent_vec_env
+from sb3_saeir.evaluation import MultiAgentEvalCallback, RandomMultiAgentPolicy, evaluate_multiagent_policy
 
 
 def test_random_policy_discrete_draws_are_uniform_and_seeded():
@@ -40,3 +40,46 @@ def test_random_policy_on_sparse_navigation():
     assert 0.0 <= metrics["coverage_over_steps_mean"] <= 1.0
     assert metrics["ep_rew_mean"] == pytest.approx(np.mean([episode["r"] for episode in episodes]))
     assert metrics["coverage_rate_mean"] == pytest.approx(np.mean([episode["coverage_rate"] for episode in episodes]))
+
+
+@pytest.mark.parametrize("n_episodes", [2.5, "3", True, 0])
+def test_evaluation_refuses_an_episode_count_that_is_not_a_whole_number(env, n_episodes):
+    """2.5 evaluated 2 episodes without a word, True evaluated one, "3" ended in a TypeError naming no argument."""
+    policy = RandomMultiAgentPolicy(env.action_space, seed=0)
+    with pytest.raises(ValueError, match=r"^evaluate_multiagent_policy: n_episodes \(game episodes\) must be an integer"):
+        evaluate_multiagent_policy(policy, env, n_episodes)
+    assert evaluate_multiagent_policy(policy, env, np.int64(2))["n_episodes"] == 2  # NumPy integers pass
+
+
+def test_a_main_metric_the_episodes_do_not_record_is_named_at_the_first_evaluation(env, tiny_kwargs, tmp_path):
+    """A misspelt ``main_metric`` scored every evaluation -inf, so no best model was ever kept, without a word."""
+    model = MAPPO("MAPPOPolicy", env, **tiny_kwargs)
+    best = tmp_path / "best"
+    callback = MultiAgentEvalCallback(env, n_eval_episodes=2, eval_freq=60, main_metric="coverage", verbose=0)
+    with pytest.raises(ValueError) as error:
+        model.learn(120, callback=callback)
+    message = str(error.value)
+    assert message.startswith("main_metric='coverage' is not recorded by the evaluated episodes") and "\n" not in message
+    assert "coverage_rate" in message and "'r' for the team return" in message
+    # the task's own metric keeps a best model
+    callback = MultiAgentEvalCallback(
+        env, n_eval_episodes=2, eval_freq=60, main_metric="coverage_rate", best_model_save_path=str(best), verbose=0
+    )
+    model.learn(120, callback=callback)
+    assert (best / "best_model.zip").is_file() and np.isfinite(callback.best_score)
+
+
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"log_path": 3}, "log_path=3 is not a folder path"),
+        ({"best_model_save_path": 3}, "best_model_save_path=3 is not a folder path"),
+        ({"log_path": "/proc/evaluations"}, "log_path='/proc/evaluations': no file can be created in /proc"),
+    ],
+)
+def test_eval_callback_folders_are_checked_when_it_is_built(env, kwargs, words):
+    """A path that is not a path ended in os.makedirs' TypeError at learn; one that cannot be written, at the
+    first evaluation's save."""
+    with pytest.raises(ValueError) as error:
+        MultiAgentEvalCallback(env, **kwargs)
+    assert str(error.value).startswith(f"MultiAgentEvalCallback: {words}") and "\n" not in str(error.value)

@@ -16,6 +16,7 @@ import torch as th
 from gymnasium import spaces
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.intrinsic import ElignCallback, RNDCallback
 from sb3_saeir.intrinsic.saeir import SAEIRCallback
 from tests.toy_envs import ToyMeetEnv
 
@@ -119,6 +120,41 @@ def test_optimizer_arguments_that_fit_pass(env, tiny_kwargs):
     ):
         model = MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": {"hidden_size": 8, **fitting}})
         assert all(model.policy.optimizer.defaults[key] == value for key, value in fitting["optimizer_kwargs"].items())
+
+
+BAD_BONUS_SETTINGS = [
+    ("RNDCallback", {"learning_rate": "fast"}, "learning_rate must be a finite number > 0, got 'fast'"),
+    ("RNDCallback", {"learning_rate": -1e-4}, "learning_rate must be a finite number > 0"),
+    ("RNDCallback", {"gamma_int": 1.5}, "gamma_int must be a finite number in [0, 1]"),
+    ("RNDCallback", {"n_epochs": 2.5}, "n_epochs must be an integer >= 1"),
+    ("RNDCallback", {"embedding_dim": 0}, "embedding_dim must be an integer >= 1"),
+    ("RNDCallback", {"obs_clip": 0.0}, "obs_clip must be a finite number > 0"),
+    ("ElignCallback", {"obs_radius": -0.5}, "obs_radius must be a finite number > 0 (or None: every teammate)"),
+    ("ElignCallback", {"obs_radius": "0.5"}, "obs_radius must be a finite number > 0"),
+    ("ElignCallback", {"learning_rate": 0.0}, "learning_rate must be a finite number > 0"),
+    ("ElignCallback", {"n_epochs": 0}, "n_epochs must be an integer >= 1"),
+    ("SAEIRCallback", {"coef": -0.1}, "coef must be a finite number >= 0"),
+    ("SAEIRCallback", {"coef": float("nan")}, "coef must be a finite number >= 0"),
+]
+
+
+@pytest.mark.parametrize(
+    "name, kwargs, words", BAD_BONUS_SETTINGS, ids=[f"{n}-{next(iter(k))}" for n, k, _ in BAD_BONUS_SETTINGS]
+)
+def test_bonus_settings_out_of_range_are_refused(name, kwargs, words):
+    """Accepted without a word before: a negative learning rate, gamma_int 1.5 (intrinsic returns that grow without
+    bound), zero epochs (a bonus model never trained), a string radius (a TypeError at the first rollout)."""
+    callback_class = {"RNDCallback": RNDCallback, "ElignCallback": ElignCallback, "SAEIRCallback": SAEIRCallback}[name]
+    with pytest.raises(ValueError) as error:
+        callback_class(**kwargs)
+    one_line(error, f"{name}: {words}")
+
+
+def test_bonus_settings_reach_the_check_through_the_algorithm(env, tiny_kwargs):
+    with pytest.raises(ValueError) as error:
+        SAEIR_PPO("MSHGPolicy", env, intrinsic_reward="rnd", intrinsic_kwargs={"gamma_int": 1.5}, **tiny_kwargs)
+    one_line(error, "RNDCallback: gamma_int must be a finite number in [0, 1], got 1.5")
+    SAEIR_PPO("MSHGPolicy", env, intrinsic_reward="elign", intrinsic_kwargs={"obs_radius": None}, **tiny_kwargs)
 
 
 def test_string_boolean_refused_by_callback():

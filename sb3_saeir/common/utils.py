@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +64,24 @@ def check_bool(owner: str, **values: Any) -> None:
     for name, value in values.items():
         if not isinstance(value, (bool, np.bool_)):
             raise NotABoolError(f"{owner}: {name} must be True or False, got {value!r} ({type(value).__name__}).")
+
+
+def check_number(owner: str, name: str, value: Any, rule: str, test: Callable[[float], bool], integer: bool = False) -> None:
+    """Raise a one-line ``ValueError`` naming ``name`` when ``value`` is not a finite number (a whole one with
+    ``integer``; ``True`` and strings are refused) for which ``test`` holds.
+
+    :param owner: class or function name for the message
+    :param name: the argument's name
+    :param value: its value
+    :param rule: the valid range in words, e.g. ``"> 0"`` or ``"in [0, 1]"``
+    :param test: whether a value is in the range
+    :param integer: whether the value must be a whole number
+    """
+    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
+    valid = not isinstance(value, (bool, np.bool_)) and isinstance(value, kinds) and math.isfinite(float(value))
+    if not (valid and test(float(value))):
+        kind = "an integer" if integer else "a finite number"
+        raise ValueError(f"{owner}: {name} must be {kind} {rule}, got {value!r}.")
 
 
 # Largest seed: SB3's ``set_random_seed`` seeds NumPy's legacy generator, which takes 0 .. 2**32 - 1.

@@ -10,6 +10,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
+from sb3_saeir.common.utils import check_number
 
 
 class IntrinsicRewardCallback(BaseCallback, ABC):
@@ -35,6 +36,7 @@ class IntrinsicRewardCallback(BaseCallback, ABC):
     """
 
     def __init__(self, coef: float = 0.1, name: str = "intrinsic", verbose: int = 0) -> None:
+        check_number(type(self).__name__, "coef", coef, ">= 0", lambda x: x >= 0)
         super().__init__(verbose)
         self.coef = coef
         self.name = name

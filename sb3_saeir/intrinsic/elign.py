@@ -18,6 +18,7 @@ from torch.nn import functional as F
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 from sb3_saeir.common.registry import register_intrinsic_reward
+from sb3_saeir.common.utils import check_number
 from sb3_saeir.intrinsic.base import NextObservationRecorder
 
 PositionFn = Callable[[th.Tensor], th.Tensor]
@@ -267,6 +268,10 @@ class ElignCallback(NextObservationRecorder):
     ) -> None:
         if obs_radius is not None and position_fn is None:
             raise ValueError("position_fn is needed when obs_radius is set (or use obs_radius=None).")
+        if obs_radius is not None:
+            check_number("ElignCallback", "obs_radius", obs_radius, "> 0 (or None: every teammate)", lambda x: x > 0)
+        check_number("ElignCallback", "learning_rate", learning_rate, "> 0", lambda x: x > 0)
+        check_number("ElignCallback", "n_epochs", n_epochs, ">= 1", lambda x: x >= 1, integer=True)
         if batch_size < 1:
             raise ValueError(f"batch_size must be positive, got {batch_size}.")
         super().__init__(coef=coef, name="elign", verbose=verbose)

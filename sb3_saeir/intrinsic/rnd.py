@@ -16,6 +16,7 @@ from torch import nn
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 from sb3_saeir.common.registry import register_intrinsic_reward
+from sb3_saeir.common.utils import check_number
 from sb3_saeir.intrinsic.base import NextObservationRecorder, true_next_observations
 
 _INPUTS = ("agent", "joint")
@@ -122,6 +123,11 @@ class RNDCallback(NextObservationRecorder):
     ) -> None:
         if input not in _INPUTS:
             raise ValueError(f"Unknown RND input {input!r}; choose one of {_INPUTS}.")
+        check_number("RNDCallback", "learning_rate", learning_rate, "> 0", lambda x: x > 0)
+        check_number("RNDCallback", "n_epochs", n_epochs, ">= 1", lambda x: x >= 1, integer=True)
+        check_number("RNDCallback", "embedding_dim", embedding_dim, ">= 1", lambda x: x >= 1, integer=True)
+        check_number("RNDCallback", "gamma_int", gamma_int, "in [0, 1]", lambda x: 0 <= x <= 1)
+        check_number("RNDCallback", "obs_clip", obs_clip, "> 0", lambda x: x > 0)
         if not 0.0 < update_proportion <= 1.0:
             raise ValueError(f"update_proportion must be in (0, 1], got {update_proportion}.")
         if batch_size is not None and batch_size < 1:

@@ -16,6 +16,7 @@ import torch as th
 from gymnasium import spaces
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir.common.utils import keywords_taken
 from sb3_saeir.intrinsic import ElignCallback, RNDCallback
 from sb3_saeir.intrinsic.saeir import SAEIRCallback
 from tests.toy_envs import ToyMeetEnv
@@ -120,6 +121,52 @@ def test_optimizer_arguments_that_fit_pass(env, tiny_kwargs):
     ):
         model = MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": {"hidden_size": 8, **fitting}})
         assert all(model.policy.optimizer.defaults[key] == value for key, value in fitting["optimizer_kwargs"].items())
+
+
+class _AnyKeywordAdam(th.optim.Adam):
+    """An optimizer whose signature cannot tell its keywords (``**kwargs``)."""
+
+    def __init__(self, params, **kwargs):
+        super().__init__(params, **kwargs)
+
+
+def test_an_optimizer_that_takes_any_keyword_checks_its_own(env, tiny_kwargs):
+    """``**kwargs``: no keyword is refused or added by the policy; the class's own check still names a wrong one."""
+    policy_kwargs = {"hidden_size": 8, "optimizer_class": _AnyKeywordAdam}
+    model = MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": policy_kwargs})
+    assert model.policy.optimizer.defaults["eps"] == th.optim.Adam([th.zeros(1)]).defaults["eps"]  # PyTorch's own
+    with pytest.raises(TypeError, match="epsilon"):
+        MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": {**policy_kwargs, "optimizer_kwargs": {"epsilon": 1}}})
+
+
+def _positional_and_keywords(a, /, b, *args, c=1, **kwargs):
+    pass
+
+
+def _keywords(a, /, b, *args, c=1):
+    pass
+
+
+class _KeywordOptimizer:
+    def __init__(self, params, lr=0.1, *, eps=1e-8):
+        pass
+
+
+@pytest.mark.parametrize(
+    "function, expected",
+    [
+        (_keywords, ("b", "c")),  # positional-only and *args are not keywords
+        (_positional_and_keywords, None),  # **kwargs: any keyword
+        (_KeywordOptimizer, ("params", "lr", "eps")),
+        (ToyMeetEnv, ("n_agents", "max_cycles")),  # a class: its constructor's, without self
+        (len, ()),  # a builtin with a signature: positional-only
+        (min, None),  # a builtin without one
+    ],
+    ids=["keywords", "var-keyword", "optimizer-class", "env-class", "builtin", "no-signature"],
+)
+def test_keywords_taken(function, expected):
+    """The keyword names the argument checks accept, or None where the signature cannot tell them."""
+    assert keywords_taken(function) == expected
 
 
 BAD_BONUS_SETTINGS = [

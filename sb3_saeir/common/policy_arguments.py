@@ -4,13 +4,13 @@ arguments they refuse or accept only as no-ops, the checks of their optimizer ar
 
 from __future__ import annotations
 
-import inspect
 import warnings
 from typing import Any
 
 import torch as th
 
 from sb3_saeir.common.hypergraph import SCALES
+from sb3_saeir.common.utils import keywords_taken
 
 # What to use instead of gSDE (SB3's use_sde), refused by the policies and by the algorithms alike.
 GSDE_UNSUPPORTED = "gSDE is not supported; continuous actions use a diagonal Gaussian (log_std_init sets its start)"
@@ -107,15 +107,12 @@ def check_optimizer_arguments(
         key = "lr" if "lr" in optimizer_kwargs else "params"
         fix = "pass learning_rate= to the algorithm (a float or a schedule)" if key == "lr" else "remove it"
         raise ValueError(f"{policy_name}: optimizer_kwargs sets {key!r}, which the policy sets itself; {fix}.")
-    try:
-        accepted = inspect.signature(optimizer_class).parameters
-    except (TypeError, ValueError):  # no signature to read: the class itself will check
-        return dict(optimizer_kwargs)
-    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in accepted.values()):
+    accepted = keywords_taken(optimizer_class)
+    if accepted is None:  # **kwargs or no signature to read: the class itself will check
         return dict(optimizer_kwargs)
     unknown = sorted(set(optimizer_kwargs) - set(accepted))
     if unknown:
-        takes = ", ".join(name for name in accepted if name not in ("self", "params", "lr"))
+        takes = ", ".join(name for name in accepted if name not in ("params", "lr"))
         raise ValueError(
             f"{policy_name}: optimizer_kwargs has {', '.join(map(repr, unknown))}, which "
             f"{optimizer_class.__name__} does not take; it takes: {takes}."
@@ -127,7 +124,8 @@ def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[
     """The policies' optimizer kwargs when none are given: MAPPO's ``eps=1e-5``, and PyTorch's fused kernel for Adam
     and AdamW (one kernel over all parameter tensors instead of several multi-tensor ``_foreach_*`` ops; the same
     update up to float rounding, ``docs/guide/performance.md``), ``foreach=True`` for other optimizer classes. A class
-    is given only the keywords its constructor takes (``torch.optim.SGD`` has no ``eps``: it gets ``foreach`` alone).
+    is given only the keywords its constructor takes (``torch.optim.SGD`` has no ``eps``: it gets ``foreach`` alone);
+    a class whose keywords its signature cannot tell (``**kwargs``) gets none: pass ``optimizer_kwargs`` to set them.
 
     :param optimizer_class: the policy's optimizer class
     :return: the keyword arguments the optimizer is built with
@@ -135,12 +133,9 @@ def default_optimizer_kwargs(optimizer_class: type[th.optim.Optimizer]) -> dict[
     if optimizer_class in (th.optim.Adam, th.optim.AdamW):
         return {"eps": 1e-5, "fused": True}
     defaults = {"eps": 1e-5, "foreach": True}
-    try:
-        accepted = inspect.signature(optimizer_class).parameters
-    except (TypeError, ValueError):  # no signature to read: PyTorch's defaults
+    accepted = keywords_taken(optimizer_class)
+    if accepted is None:  # **kwargs or no signature to read: PyTorch's defaults, which never name a keyword it lacks
         return {}
-    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in accepted.values()):
-        return defaults
     return {name: value for name, value in defaults.items() if name in accepted}
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 import tempfile
@@ -82,6 +83,24 @@ def check_number(owner: str, name: str, value: Any, rule: str, test: Callable[[f
     if not (valid and test(float(value))):
         kind = "an integer" if integer else "a finite number"
         raise ValueError(f"{owner}: {name} must be {kind} {rule}, got {value!r}.")
+
+
+def keywords_taken(function: Callable[..., Any]) -> tuple[str, ...] | None:
+    """The names ``function`` takes as keyword arguments, in signature order (a class: its constructor's, without
+    ``self``), or ``None`` where its signature cannot tell: it takes ``**kwargs``, or it has no signature to read (a
+    builtin). The argument checks refuse an unknown keyword only where this is not ``None``.
+
+    :param function: a function or class
+    :return: the keyword parameter names, or ``None``
+    """
+    try:
+        parameters = inspect.signature(function).parameters
+    except (TypeError, ValueError):  # no signature to read
+        return None
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in parameters.values()):
+        return None
+    keyword_kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    return tuple(name for name, parameter in parameters.items() if parameter.kind in keyword_kinds)
 
 
 # Largest seed: SB3's ``set_random_seed`` seeds NumPy's legacy generator, which takes 0 .. 2**32 - 1.

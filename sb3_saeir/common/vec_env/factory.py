@@ -7,14 +7,13 @@ A task's native vec env (all games in this process), the PettingZoo games in thi
 
 from __future__ import annotations
 
-import inspect
 import warnings
 from typing import Any
 
 from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir.common.registry import VEC_ENV_KEYS, get_native_vec_env_factory, get_task_factory, get_task_spec
-from sb3_saeir.common.utils import check_seed, usable_cores
+from sb3_saeir.common.utils import check_seed, keywords_taken, usable_cores
 from sb3_saeir.common.vec_env.base import GroupedVecEnv
 from sb3_saeir.common.vec_env.game_checks import ParallelEnvFactory, check_vec_env_options
 from sb3_saeir.common.vec_env.pettingzoo import MultiAgentVecEnv
@@ -103,16 +102,12 @@ def check_task_kwargs(task: Any, task_kwargs: dict[str, Any]) -> None:
         constructor = task
     else:
         return
-    try:
-        parameters = inspect.signature(constructor).parameters
-    except (TypeError, ValueError):  # no signature to read (a builtin): the constructor checks its own arguments
+    taken = keywords_taken(constructor)
+    if taken is None:  # **kwargs or no signature to read (a builtin): the constructor checks its own arguments
         return
-    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in parameters.values()):
-        return
-    unknown = sorted(set(task_kwargs) - set(parameters) - set(VEC_ENV_KEYS))
+    unknown = sorted(set(task_kwargs) - set(taken) - set(VEC_ENV_KEYS))
     if unknown:
-        keyword_kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
-        takes = ", ".join(name for name, parameter in parameters.items() if parameter.kind in keyword_kinds) or "none"
+        takes = ", ".join(taken) or "none"
         name = getattr(constructor, "__name__", repr(constructor))
         raise ValueError(
             f"make_multiagent_vec_env({task!r}): {', '.join(map(repr, unknown))} is not an argument of the task's "

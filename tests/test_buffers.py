@@ -5,7 +5,7 @@ import pytest
 import torch as th
 from gymnasium import spaces
 
-from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
+from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 from sb3_saeir.common.torch_layers import HypergraphScaleCritic
 
@@ -212,3 +212,25 @@ def test_chunk_replay_reproduces_rollout_values_and_log_probs():
             np.testing.assert_allclose(log_prob[mask].numpy(), samples.old_log_prob[mask].numpy(), atol=2e-5)
     assert n_minibatches == 3
     env.close()
+
+
+@pytest.mark.parametrize("algo, policy", [(MAPPO, "MAPPOPolicy"), (SAEIR_PPO, "MSHGPolicy")])
+def test_a_chunk_longer_than_the_rollout_trains_as_the_rollout_and_warns(algo, policy):
+    """``data_chunk_length > n_steps`` pads every game's one chunk to ``data_chunk_length`` steps: the update is the
+    one of ``data_chunk_length=n_steps`` (the padding is masked), at more recurrent compute, so it warns. The critics'
+    Gumbel noise is off: its draws cover the padded steps too, so with it the updates agree in distribution only."""
+    parameters = []
+    for chunk in (8, 20):
+        env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=3)
+        kwargs = dict(n_steps=8, n_epochs=2, n_minibatches=1, data_chunk_length=chunk, seed=3)
+        if algo is SAEIR_PPO:
+            kwargs["policy_kwargs"] = dict(critic_gumbel_noise=False)
+        if chunk > 8:
+            with pytest.warns(UserWarning, match=r"data_chunk_length=20 is longer than n_steps=8.*data_chunk_length=8"):
+                model = algo(policy, env, **kwargs)
+        else:
+            model = algo(policy, env, **kwargs)
+        model.learn(16 * env.num_envs)
+        parameters.append(th.cat([p.detach().flatten() for p in model.policy.parameters()]))
+        env.close()
+    th.testing.assert_close(parameters[0], parameters[1], atol=1e-5, rtol=0)

@@ -151,6 +151,14 @@ def resolve_minibatches(
     :param batch_size: ``batch_size`` argument (agent-samples), or ``None``
     :param n_minibatches: ``n_minibatches`` argument
     """
+    if data_chunk_length > n_steps:
+        warnings.warn(
+            f"data_chunk_length={data_chunk_length} is longer than n_steps={n_steps}: each game's rollout is one chunk "
+            f"padded to {data_chunk_length} steps, the same update as data_chunk_length={n_steps} at more recurrent "
+            f"compute; set data_chunk_length={n_steps} (or less).",
+            UserWarning,
+            stacklevel=4,
+        )
     blocks = n_blocks(n_steps, n_games, data_chunk_length)
     if batch_size is None:
         if not 1 <= n_minibatches <= blocks:

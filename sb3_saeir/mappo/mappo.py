@@ -84,7 +84,8 @@ class MAPPO(OnPolicyAlgorithm):
         argument, taken so that PPO hyperparameters that set it off still apply)
     :param sde_sample_freq: with ``use_sde=False`` it has no effect (SB3's ``PPO`` argument)
     :param n_minibatches: minibatches per epoch when ``batch_size`` is ``None`` (blocks are split as evenly as possible)
-    :param data_chunk_length: steps per recurrent training chunk (10)
+    :param data_chunk_length: steps per recurrent training chunk (10); longer than ``n_steps`` it warns (the padding
+        only costs compute)
     :param intrinsic_reward: ``None`` (default) for no bonus; ``"saeir"``, ``"rnd"`` or ``"elign"`` adds that
         :class:`~sb3_saeir.intrinsic.IntrinsicRewardCallback` (or pass your own callback to ``learn``)
     :param intrinsic_coef: beta, scale of the intrinsic reward; ``None``: the bonus's default (SAEIR 0.1, RND 0.5,

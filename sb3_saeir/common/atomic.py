@@ -25,6 +25,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import IO, Any, cast
 
+from sb3_saeir.common.utils import user_stacklevel
+
 # Modes of atomic_file.
 ATOMIC_FILE_MODES = ("wb", "w+b", "w")
 # How many temporary names are tried before giving up (each is random: a clash is all but impossible).
@@ -150,10 +152,10 @@ def sb3_save_path(path: str | os.PathLike[str]) -> Path:
     if target.suffix == "":
         target = Path(f"{target}.zip")
     while target.is_dir():
-        warnings.warn(f"Path '{target}' is a folder. Will save instead to {target}_2", stacklevel=4)
+        warnings.warn(f"Path '{target}' is a folder. Will save instead to {target}_2", stacklevel=user_stacklevel())
         target = Path(f"{target}_2")
     if not target.parent.is_dir():
-        warnings.warn(f"Path '{target.parent}' does not exist. Will create it.", stacklevel=4)
+        warnings.warn(f"Path '{target.parent}' does not exist. Will create it.", stacklevel=user_stacklevel())
         target.parent.mkdir(parents=True, exist_ok=True)
     return target
 

@@ -30,7 +30,7 @@ from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
 from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
-from sb3_saeir.common.utils import check_bool, unwritable_folder
+from sb3_saeir.common.utils import check_bool, unwritable_folder, user_stacklevel
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
 # The largest agent-step count a budget may have: integers up to 2**53 are exact as floats (SB3's progress and the
@@ -157,7 +157,7 @@ def resolve_minibatches(
             f"padded to {data_chunk_length} steps, the same update as data_chunk_length={n_steps} at more recurrent "
             f"compute; set data_chunk_length={n_steps} (or less).",
             UserWarning,
-            stacklevel=4,
+            stacklevel=user_stacklevel(),
         )
     blocks = n_blocks(n_steps, n_games, data_chunk_length)
     if batch_size is None:
@@ -363,7 +363,7 @@ def check_device(owner: str, device: Any, cpu_fallback: bool = True) -> None:
         return
     if not cpu_fallback:
         raise ValueError(f"{named}: no CUDA device is available here; use 'cpu' (or 'auto').")
-    warnings.warn(f"{named} but CUDA is not available; training on the CPU.", UserWarning, stacklevel=3)
+    warnings.warn(f"{named} but CUDA is not available; training on the CPU.", UserWarning, stacklevel=user_stacklevel())
 
 
 def check_verbose(algo_name: str, verbose: Any) -> None:

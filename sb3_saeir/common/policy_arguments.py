@@ -10,7 +10,7 @@ from typing import Any
 import torch as th
 
 from sb3_saeir.common.hypergraph import SCALES
-from sb3_saeir.common.utils import keywords_taken
+from sb3_saeir.common.utils import keywords_taken, user_stacklevel
 
 # What to use instead of gSDE (SB3's use_sde), refused by the policies and by the algorithms alike.
 GSDE_UNSUPPORTED = "gSDE is not supported; continuous actions use a diagonal Gaussian (log_std_init sets its start)"
@@ -152,7 +152,7 @@ def default_scales(n_agents: int) -> tuple[str, ...]:
         f"MSHGPolicy: the group scale is left out with {n_agents} agents per game (group_size={DEFAULT_GROUP_SIZE} "
         "groups would hold the whole team and copy the team critic); the critics are ('team', 'individual').",
         UserWarning,
-        stacklevel=3,
+        stacklevel=user_stacklevel(),
     )
     return tuple(scale for scale in SCALES if scale != "group")
 
@@ -170,5 +170,5 @@ def warn_degenerate_group_scale(group_size: int) -> None:
         "every critic sees the same hypergraph; train on games of 2 or more agents, or pass "
         "policy_kwargs=dict(scales=('team',)) for one critic.",
         UserWarning,
-        stacklevel=4,
+        stacklevel=user_stacklevel(),
     )

@@ -5,9 +5,11 @@ from __future__ import annotations
 import inspect
 import math
 import os
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -17,6 +19,22 @@ import torch as th
 # with 2 torch threads than with 1 when the second core is free, and up to 10x slower when other processes compete
 # for the cores. More than 2 threads were not measured.
 MAX_DEFAULT_THREADS = 2
+
+
+_PACKAGE_FOLDER = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep  # sb3_saeir/
+
+
+def user_stacklevel() -> int:
+    """The ``stacklevel`` that makes :func:`warnings.warn`, called where this is called, name the first line outside
+    this package: the user's call, as SB3's warnings do, however deep the package's calls behind it run
+    (``SAEIR_PPO``'s constructor is one level deeper than ``MAPPO``'s).
+    """
+    level = 1
+    frame: FrameType | None = sys._getframe(1)  # the function that warns
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE_FOLDER):
+        level += 1
+        frame = frame.f_back
+    return level
 
 
 def default_num_threads() -> int:

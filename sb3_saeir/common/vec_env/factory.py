@@ -13,7 +13,7 @@ from typing import Any
 from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir.common.registry import VEC_ENV_KEYS, get_native_vec_env_factory, get_task_factory, get_task_spec
-from sb3_saeir.common.utils import check_seed, keywords_taken, usable_cores
+from sb3_saeir.common.utils import check_seed, keywords_taken, usable_cores, user_stacklevel
 from sb3_saeir.common.vec_env.base import GroupedVecEnv
 from sb3_saeir.common.vec_env.game_checks import ParallelEnvFactory, check_vec_env_options
 from sb3_saeir.common.vec_env.pettingzoo import MultiAgentVecEnv
@@ -162,5 +162,5 @@ def warn_more_workers_than_cores(num_cpus: int, n_games: int) -> None:
             f"make_multiagent_vec_env: num_cpus={num_cpus} starts {workers} env worker processes, but this machine "
             f"gives this process {cores} core(s): the workers take turns and step slower than fewer would; pass {fix}.",
             UserWarning,
-            stacklevel=3,  # the caller of make_multiagent_vec_env
+            stacklevel=user_stacklevel(),
         )

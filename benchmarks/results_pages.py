@@ -230,6 +230,13 @@ STUDIES: dict[str, Study] = {
         methods(COUNTER, ("football-stage-f/counterattack/runs.csv:{algo}",), "mappo saeir_ppo", RANDOM["counterattack"]),
         checkpoints=(250_000, 500_000, 1e6, 1.5e6),
     ),
+    "counterattack-4m": Study(
+        (
+            *methods(COUNTER, ("counterattack-4m/runs.csv:{algo}",), "mappo", RANDOM["counterattack"], summary=False),
+            *methods(COUNTER, ("counterattack-4m/runs.csv:{algo}",), "saeir_ppo", RANDOM["counterattack"]),
+        ),
+        checkpoints=(1e6, 2e6, 3e6, 4e6),
+    ),
     "mpe2-history": Study(
         (
             *methods(

@@ -13,7 +13,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import atomic_file, save_model
 from sb3_saeir.common.run_state import resumable_env
-from sb3_saeir.common.utils import unwritable_folder
+from sb3_saeir.common.utils import check_number, check_writable_folder
 from sb3_saeir.common.vec_env import is_multiagent_vec_env
 
 
@@ -81,10 +81,8 @@ def evaluate_multiagent_policy(
     """
     if not is_multiagent_vec_env(env):
         raise TypeError("evaluate_multiagent_policy needs an env from sb3_saeir.make_multiagent_vec_env.")
-    if isinstance(n_episodes, bool) or not isinstance(n_episodes, (int, np.integer)) or n_episodes < 1:
-        raise ValueError(
-            f"evaluate_multiagent_policy: n_episodes (game episodes) must be an integer >= 1, got {n_episodes!r}."
-        )
+    owner = "evaluate_multiagent_policy"
+    check_number(owner, "n_episodes (game episodes)", n_episodes, ">= 1", lambda x: x >= 1, integer=True)
     n_games, n_agents = env.n_games, env.n_agents  # type: ignore[attr-defined]
     targets = np.array([(n_episodes + g) // n_games for g in range(n_games)])  # sums to n_episodes
     counts = np.zeros(n_games, dtype=int)
@@ -185,16 +183,8 @@ class MultiAgentEvalCallback(EventCallback):
             raise ValueError(
                 f"eval_freq must be an integer >= 0 agent-steps (0: only explicit evaluate()), got {eval_freq!r}."
             )
-        for name, path in (("log_path", log_path), ("best_model_save_path", best_model_save_path)):
-            if path is None:
-                continue
-            if not isinstance(path, (str, os.PathLike)):
-                raise ValueError(f"MultiAgentEvalCallback: {name}={path!r} is not a folder path; pass a folder (or None).")
-            problem = unwritable_folder(path)  # checked now, not at the first evaluation
-            if problem:
-                raise ValueError(
-                    f"MultiAgentEvalCallback: {name}={str(path)!r}: {problem}; pass a folder you can write (or None)."
-                )
+        check_writable_folder("MultiAgentEvalCallback", "log_path", log_path)  # now, not at the first evaluation
+        check_writable_folder("MultiAgentEvalCallback", "best_model_save_path", best_model_save_path)
         self.eval_env = eval_env
         self.n_eval_episodes = n_eval_episodes
         self.eval_freq = eval_freq

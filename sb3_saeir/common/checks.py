@@ -30,7 +30,7 @@ from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
 from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
-from sb3_saeir.common.utils import check_bool, unwritable_folder, user_stacklevel
+from sb3_saeir.common.utils import check_bool, check_writable_folder, unwritable_folder, user_stacklevel
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
 # The largest agent-step count a budget may have: integers up to 2**53 are exact as floats (SB3's progress and the
@@ -385,22 +385,12 @@ def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
     :param algo_name: class name for the message
     :param tensorboard_log: ``tensorboard_log`` argument
     """
-    if tensorboard_log is None:
-        return
-    if not isinstance(tensorboard_log, (str, os.PathLike)):
-        raise ValueError(
-            f"{algo_name}: tensorboard_log={tensorboard_log!r} is not a folder path; pass a path such as "
-            "'./tensorboard/' (or None)."
-        )
-    if os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
+    is_path = isinstance(tensorboard_log, (str, os.PathLike))
+    if is_path and os.path.exists(tensorboard_log) and not os.path.isdir(tensorboard_log):
         raise ValueError(
             f"{algo_name}: tensorboard_log={str(tensorboard_log)!r} is an existing file, not a folder; pass a folder path."
         )
-    problem = unwritable_folder(tensorboard_log)
-    if problem:
-        raise ValueError(
-            f"{algo_name}: tensorboard_log={str(tensorboard_log)!r}: {problem}; pass a folder you can write (or None)."
-        )
+    check_writable_folder(algo_name, "tensorboard_log", tensorboard_log, "a path such as './tensorboard/'")
 
 
 def check_save_path(algo_name: str, path: Any) -> None:

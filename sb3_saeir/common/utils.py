@@ -173,3 +173,22 @@ def unwritable_folder(folder: str | os.PathLike) -> str:
     except OSError:  # a folder the user may write in but not own: its times stay as the probe left them
         pass
     return ""
+
+
+def check_writable_folder(owner: str, name: str, folder: Any, example: str = "a folder") -> None:
+    """Raise a one-line ``ValueError`` naming ``name`` when ``folder`` is neither ``None`` nor a path of a folder in
+    which a file can be written (:func:`unwritable_folder`), checked when the argument is given rather than at the
+    first write.
+
+    :param owner: class or function name for the message
+    :param name: the argument's name
+    :param folder: its value
+    :param example: what to pass instead of a value that is not a path, e.g. ``"a path such as './tensorboard/'"``
+    """
+    if folder is None:
+        return
+    if not isinstance(folder, (str, os.PathLike)):
+        raise ValueError(f"{owner}: {name}={folder!r} is not a folder path; pass {example} (or None).")
+    problem = unwritable_folder(folder)
+    if problem:
+        raise ValueError(f"{owner}: {name}={str(folder)!r}: {problem}; pass a folder you can write (or None).")

@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
+from sb3_saeir.common.registry import VEC_ENV_KEYS, get_task_spec, list_tasks
 from sb3_saeir.common.run_files import (
     ARGS_FILE,
     CHECKPOINT_NAME,
@@ -96,12 +97,27 @@ def _jsonable(value: Any) -> Any:
     return json.loads(json.dumps(value, sort_keys=True, default=str))
 
 
+def game_kwargs(task: str, config: dict[str, Any]) -> dict[str, Any]:
+    """The keyword arguments each game of a run is built with: the task's registered defaults (for navigation, its
+    reward options: ``docs/tasks.md``) under the config's ``env_kwargs`` (the vec env's ``backend`` left out).
+
+    :param task: the task id (one that is not registered: the config's ``env_kwargs`` alone)
+    :param config: the config entry the run trains with
+    """
+    env_kwargs = config.get("env_kwargs") or {}
+    registered = get_task_spec(task).kwargs if task in list_tasks() else {}
+    merged = {**registered, **(env_kwargs if isinstance(env_kwargs, dict) else {})}
+    return {key: value for key, value in merged.items() if key not in VEC_ENV_KEYS}
+
+
 def spec_record(spec: RunSpec) -> dict[str, Any]:
-    """What a run's ``spec.json`` holds: its settings, the config entry it trains with, the package version
-    (``options`` only when the command has any)."""
+    """What a run's ``spec.json`` holds: its settings, the config entry it trains with, the keyword arguments its games
+    are built with (``game_kwargs``: recorded, not compared on resume, since the task and the config are), the package
+    version (``options`` only when the command has any)."""
     from sb3_saeir import __version__
 
-    record = {**asdict(spec), "config": spec.resolved_config(), "version": __version__}
+    config = spec.resolved_config()
+    record = {**asdict(spec), "config": config, "game_kwargs": game_kwargs(spec.task, config), "version": __version__}
     if not spec.options:
         del record["options"]
     return _jsonable(record)

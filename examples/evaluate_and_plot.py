@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import os
 
@@ -41,11 +42,22 @@ def read_progress(path: str) -> dict[str, tuple[list[float], list[float]]]:
     return columns
 
 
+def quickstart_task(model_path: str) -> str:
+    """The task of the quickstart's ``eval.json`` beside ``model_path``, else the quickstart's default task."""
+    report = os.path.join(os.path.dirname(os.path.abspath(model_path)), "eval.json")
+    if os.path.isfile(report):
+        with open(report) as file:
+            return str(json.load(file)["task"])
+    return "cn-sparse-no-penalty-n3"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("model", help="a saved model zip")
     parser.add_argument("--algo", default="saeir_ppo", help=f"method that saved it: {', '.join(sorted(ALGOS))}")
-    parser.add_argument("--task", default="cn-sparse-n3")
+    parser.add_argument(
+        "--task", default=None, help="task id (default: the task in eval.json beside the model, as the quickstart writes)"
+    )
     parser.add_argument("--episodes", type=int, default=500, help="game episodes per policy")
     parser.add_argument("--seed", type=int, default=20_000, help="seed of the evaluation games")
     parser.add_argument("--stochastic", action="store_true", help="sample actions instead of greedy ones")
@@ -56,6 +68,7 @@ def main() -> None:
     out = args.out or os.path.dirname(os.path.abspath(args.model))
     os.makedirs(out, exist_ok=True)
 
+    args.task = args.task or quickstart_task(args.model)
     model = ALGOS[args.algo].load(args.model, device="cpu")
     episodes = {}
     policies = {"model": model, "random": RandomMultiAgentPolicy(model.action_space, seed=args.seed)}

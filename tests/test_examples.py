@@ -74,6 +74,7 @@ def test_quickstart_example(quickstart_run):
     assert "SAEIR bonus fired" in stdout
     report = json.loads((out / "eval.json").read_text())
     assert report["agent_steps"] == 900
+    assert report["task"] == "cn-sparse-no-penalty-n3"  # the reading that reaches Table 1 (docs/tasks.md)
     assert report["trained"]["n_episodes"] == report["random"]["n_episodes"] == 20
     assert set(report["intrinsic_fire_rate"]) == {"team", "group", "individual"}
     assert report["verdict"].startswith("After 900 agent-steps")

@@ -20,7 +20,10 @@ defaults as they are: the values in return space (what ``normalize_values=False`
 normalised values times the scale's ``ValueNorm`` standard deviation ``sigma``, printed), the values times 4 (a
 softmax temperature of 1/4; no such setting exists), and the window restarted at every episode start. A second table
 gives the mean normalised value at every fifth position of the window (about ten positions of a window longer than
-50 steps) and at its last, the shape the rises come from.
+50 steps) and at its last, the shape the rises come from. A third asks whether the bonus marks episode starts: per
+scale, the fire rate beside the rate at which steps are an episode's first (steps 2 on of each window, as the fire
+rate), the share of firing steps that are an episode's first step, and the mean value by position in the episode
+(steps before the window's first episode start, whose position is unknown, left out).
 """
 
 from __future__ import annotations
@@ -88,11 +91,43 @@ def thresholds(entropies: np.ndarray) -> np.ndarray:
     return np.where(entropies > 0, 0.5 * (low + high) + log_steps, np.inf)
 
 
+def episode_positions(episode_starts: np.ndarray) -> np.ndarray:
+    """Each step's position in its episode, 0 on an episode's first step, of windows ``(T, S)``; ``-1`` before the
+    window's first episode start (that episode began in an earlier rollout, at an unknown position), ``(T, S)``."""
+    starts = episode_starts.astype(bool)
+    positions = np.full(starts.shape, -1, dtype=np.int64)
+    positions[0] = np.where(starts[0], 0, -1)
+    for t in range(1, starts.shape[0]):
+        positions[t] = np.where(starts[t], 0, np.where(positions[t - 1] >= 0, positions[t - 1] + 1, -1))
+    return positions
+
+
+def first_step_share(fired: np.ndarray, episode_starts: np.ndarray) -> float:
+    """The share of firing steps that are an episode's first step (``nan`` when no step fires).
+
+    :param fired: which steps fired, ``(T, S)``
+    :param episode_starts: which steps are an episode's first, ``(T, S)``
+    """
+    n_fired = int(fired.sum())
+    return float((fired & episode_starts.astype(bool)).sum() / n_fired) if n_fired else float("nan")
+
+
+def episode_profile(values: np.ndarray, positions: np.ndarray, at: list[int]) -> np.ndarray:
+    """The mean value at each position ``at`` in the episode (``nan`` where no step has that position), ``(len(at),)``.
+
+    :param values: the values of windows ``(T, S)``
+    :param positions: :func:`episode_positions` of the windows, ``(T, S)``
+    :param at: the positions
+    """
+    return np.array([values[positions == position].mean() if (positions == position).any() else np.nan for position in at])
+
+
 def scale_readings(values: np.ndarray, values_return_space: np.ndarray, episode_starts: np.ndarray) -> dict[str, Any]:
     """Every figure of one scale over windows ``(T, S)`` (see the module docstring)."""
     rise = rises(values)[2:]  # steps 0 and 1 never fire
     threshold = thresholds(window_entropies(values))[2:]
     fired = saeir_bonus(values)[2:] > 0
+    positions = episode_positions(episode_starts)
     finite = np.isfinite(threshold)
     return {
         "n": rise.size,
@@ -107,6 +142,9 @@ def scale_readings(values: np.ndarray, values_return_space: np.ndarray, episode_
         "fire_rate_temperature": float((saeir_bonus(TEMPERATURE_FACTOR * values)[2:] > 0).mean()),
         "fire_rate_episode_windows": float((saeir_bonus(values, episode_starts=episode_starts)[2:] > 0).mean()),
         "profile": values.mean(axis=1),  # (T,) mean value at each position of the window
+        "first_step_share": first_step_share(fired, episode_starts[2:]),
+        "episode_start_rate": float(episode_starts[2:].astype(bool).mean()),
+        "episode_profile": episode_profile(values, positions, profile_positions(values.shape[0])),
     }
 
 
@@ -152,6 +190,19 @@ def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
             profile = row["profile"]
             cells = " | ".join(f"{profile[t]:+.3f}" if t < len(profile) else "-" for t in positions)
             lines.append(f"| {name} | {scale} | {cells} |")
+    lines += [
+        "",
+        "| model | scale | fire rate | episode-start rate | firing steps that are an episode's first step "
+        f"| {' | '.join(f'mean value at episode step {t}' for t in positions)} |",
+    ]
+    lines.append("|---" * (5 + len(positions)) + "|")
+    for name, scales in results.items():
+        for scale, row in scales.items():
+            cells = " | ".join("-" if np.isnan(value) else f"{value:+.3f}" for value in row["episode_profile"])
+            share = "-" if np.isnan(row["first_step_share"]) else f"{row['first_step_share']:.3f}"
+            lines.append(
+                f"| {name} | {scale} | {row['fire_rate']:.4f} | {row['episode_start_rate']:.4f} | {share} | {cells} |"
+            )
     return "\n".join(lines) + "\n"
 
 

@@ -94,7 +94,11 @@ def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):
     assert rows[0].startswith(f"| {tmp_path.name}/mshg_only/cn-sparse-n3_s1/cn-sparse-n3 | team |")  # folder/algo/run/file
     assert all(row.split(" | ")[2] == str(23 * 6) for row in rows[:4])  # steps 2-24 of 2 games x 3 agents
     assert "| mean value at step 0 | mean value at step 5 |" in text and "| mean value at step 24 |" in text
-    assert len(rows) == 8 and rows[4].count(" | ") == 7  # the profile table: model, scale, positions 0-20 and 24
+    assert len(rows) == 12 and rows[4].count(" | ") == 7  # the profile table: model, scale, positions 0-20 and 24
+    # the episode-start table: navigation's windows are whole episodes, so no step from 2 on starts one
+    assert "| firing steps that are an episode's first step | mean value at episode step 0 |" in text
+    assert all(row.split(" | ")[3] == "0.0000" for row in rows[8:])
+    assert all(row.split(" | ")[5] != "-" for row in rows[8:])  # every window's step 0 is an episode's first
 
 
 def test_profile_positions(bonus_rise):
@@ -108,3 +112,22 @@ def test_models_without_spec_are_refused(bonus_rise, tmp_path, capsys):
     with pytest.raises(SystemExit):
         bonus_rise.main(["--model", str(tmp_path / "model.zip")])
     assert "no spec.json next to" in capsys.readouterr().err
+
+
+def test_episode_positions_worked_example(bonus_rise):
+    starts = np.array([[0, 1], [0, 0], [1, 0], [0, 0], [0, 1], [1, 0]], dtype=bool)  # (T=6, S=2)
+    positions = bonus_rise.episode_positions(starts)
+    assert positions[:, 0].tolist() == [-1, -1, 0, 1, 2, 0]  # the window began inside an earlier episode
+    assert positions[:, 1].tolist() == [0, 1, 2, 3, 0, 1]
+
+
+def test_first_step_share_and_episode_profile_worked_example(bonus_rise):
+    starts = np.array([[1, 0], [0, 1], [0, 0], [1, 0]], dtype=bool)  # (T=4, S=2)
+    fired = np.array([[1, 0], [0, 1], [1, 0], [0, 0]], dtype=bool)
+    assert bonus_rise.first_step_share(fired, starts) == pytest.approx(2 / 3)  # 2 of 3 firing steps open an episode
+    assert np.isnan(bonus_rise.first_step_share(np.zeros_like(fired), starts))
+    values = np.array([[1.0, 9.0], [2.0, 4.0], [3.0, 6.0], [5.0, 7.0]])
+    positions = bonus_rise.episode_positions(starts)  # column 0: 0 1 2 0; column 1: -1 0 1 2
+    profile = bonus_rise.episode_profile(values, positions, [0, 1, 2, 3])
+    np.testing.assert_allclose(profile[:3], [(1.0 + 5.0 + 4.0) / 3, (2.0 + 6.0) / 2, (3.0 + 7.0) / 2])
+    assert np.isnan(profile[3])  # 9.0 (position unknown) is left out; no step is at position 3

@@ -113,3 +113,13 @@ def test_intrinsic_kwargs_string_or_dict(value, variant):
     model, env, _, _ = build_model("saeir_ppo", "cn-sparse-n3", params, n_games=2, seed=0)
     assert model.intrinsic_kwargs == {"variant": variant}
     env.close()
+
+
+@pytest.mark.parametrize("task", ["grf-3v1-keeper", "grf-counterattack-easy"])
+def test_football_ablations_change_only_their_half_of_saeir(task):
+    """MSHG-only is SAEIR_PPO without the bonus, SAE-only is MAPPO with it (the paper's Fig. 5 ablation)."""
+    saeir, mappo = load_hyperparams("saeir_ppo", task), load_hyperparams("mappo", task)
+    without_bonus = {key: value for key, value in saeir.items() if key != "intrinsic_coef"}
+    assert load_hyperparams("mshg_only", task) == {**without_bonus, "intrinsic_reward": None}
+    assert load_hyperparams("sae_only", task) == {**mappo, "intrinsic_reward": "saeir", "intrinsic_coef": 0.1}
+    assert saeir["intrinsic_coef"] == 0.1

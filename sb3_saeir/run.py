@@ -177,6 +177,31 @@ class RunEvalCallback(MultiAgentEvalCallback):
 
 # ---------------------------------------------------------------------------------------------------- the run
 # ---------------------------------------------------------------------------------------------------- the run
+
+# The signals on which a command line's run writes a checkpoint and stops, as on Ctrl-C (docs/guide/training.md,
+# "Signals"): a terminal's Ctrl-C (SIGINT), what kill, timeout, container stops and batch schedulers send first
+# (SIGTERM), and a closed terminal (SIGHUP). The command then exits with 128 + the signal's number.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def signal_name(signum: int) -> str:
+    """How a stop signal is named to the user: ``Ctrl-C`` for SIGINT, else its name (``SIGTERM``, ``SIGHUP``)."""
+    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+
+
+# The exit status of a command line's run stopped early by Ctrl-C (as shells give a command ended by SIGINT: 128 + 2).
+INTERRUPTED_EXIT_STATUS = 130
+
+
+def interrupted_exit_status(signum: int | None) -> int:
+    """The exit status of a command line's run stopped early by a signal: 128 + its number, as shells give (130 for
+    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP).
+
+    :param signum: the signal (``None``: Ctrl-C)
+    """
+    return INTERRUPTED_EXIT_STATUS if signum is None else 128 + int(signum)
+
+
 @dataclass
 class RunOutput:
     """How a run shows itself while it trains (default: quietly, as the benchmark's runs).
@@ -625,8 +650,9 @@ class Run:
 
     @contextmanager
     def _ctrl_c(self, checkpoints: RunCheckpointCallback) -> Iterator[None]:
-        """With ``stop_on_ctrl_c``, in the main thread: the first Ctrl-C asks for a checkpoint at the next rollout
-        start and a stop there; a second stops at once (``KeyboardInterrupt``)."""
+        """For a command line's run, in the main thread: the first of :data:`STOP_SIGNALS` (Ctrl-C, ``kill``'s
+        SIGTERM, a closed terminal's SIGHUP) asks for a checkpoint at the next rollout start and a stop there; a
+        second stops at once (``KeyboardInterrupt``)."""
         if not self.output.command_line or threading.current_thread() is not threading.main_thread():
             yield
             return
@@ -634,14 +660,16 @@ class Run:
         def handler(signum: int, frame: Any) -> None:
             if checkpoints.stop_requested:
                 raise KeyboardInterrupt
-            checkpoints.request_stop()
-            print("\nCtrl-C: writing a checkpoint after this rollout and update, then stopping (Ctrl-C again: stop now)")
+            checkpoints.request_stop(signum)
+            name = signal_name(signum)
+            print(f"\n{name}: writing a checkpoint after this rollout and update, then stopping ({name} again: stop now)")
 
-        previous = signal.signal(signal.SIGINT, handler)
+        previous = {signum: signal.signal(signum, handler) for signum in STOP_SIGNALS}
         try:
             yield
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for signum, previous_handler in previous.items():
+                signal.signal(signum, previous_handler)
 
     def _finish(self, end_state: dict[str, Any] | None) -> Path:
         """Save ``<task>.zip`` (with ``end_state``, the resume state of its last step, when there is one); when the

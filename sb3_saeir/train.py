@@ -46,7 +46,7 @@ from sb3_saeir.experiment import (
     loaded_network,
     model_method_mismatch,
 )
-from sb3_saeir.run import Run, RunOutput, RunStoppedError
+from sb3_saeir.run import INTERRUPTED_EXIT_STATUS, Run, RunOutput, RunStoppedError, interrupted_exit_status, signal_name
 from sb3_saeir.run_record import RunSpec, check_run_folder_writable, config_record, stored_record
 
 __all__ = [
@@ -60,21 +60,20 @@ __all__ = [
 ]
 
 
-# The exit status of a run stopped early by Ctrl-C (as shells give a command ended by SIGINT: 128 + 2).
-INTERRUPTED_EXIT_STATUS = 130
-
-
 class RunInterruptedError(KeyboardInterrupt):
-    """A run stopped early by Ctrl-C, cleanly: its checkpoint is written and ``--resume`` continues it. A
-    ``KeyboardInterrupt``, so that a Python caller sees the Ctrl-C; ``main`` exits with
-    :data:`INTERRUPTED_EXIT_STATUS`.
+    """A run stopped early by Ctrl-C (or SIGTERM, SIGHUP), cleanly: its checkpoint is written and ``--resume``
+    continues it. A ``KeyboardInterrupt``, so that a Python caller sees the stop; ``main`` exits with
+    :attr:`exit_status`.
 
     :param folder: the run's folder
+    :param signum: the signal that stopped it (``None``: Ctrl-C)
     """
 
-    def __init__(self, folder: Path) -> None:
-        super().__init__(f"the run in {folder} was stopped early by Ctrl-C; the same command with --resume continues it")
+    def __init__(self, folder: Path, signum: int | None = None) -> None:
+        how = signal_name(signum) if signum is not None else "Ctrl-C"
+        super().__init__(f"the run in {folder} was stopped early by {how}; the same command with --resume continues it")
         self.folder = folder
+        self.exit_status = interrupted_exit_status(signum)
 
 
 # Command-line options that may change between a run and its --resume: they do not change what is trained.
@@ -208,7 +207,7 @@ def _execute(
     print(f"Saved {model_path} after {time.time() - run.clock.start:.0f} s")
     if run.checkpoints.stopped_at is not None:
         print(f"Stopped at the checkpoint {run.checkpoints.stopped_at}: the same command with --resume continues it.")
-        raise RunInterruptedError(folder)
+        raise RunInterruptedError(folder, run.checkpoints.stop_signal)
     return folder
 
 
@@ -364,8 +363,8 @@ def main(argv: list[str] | None = None) -> int:
     except RunStoppedError as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
         return 1
-    except RunInterruptedError:
-        return INTERRUPTED_EXIT_STATUS
+    except RunInterruptedError as stop:
+        return stop.exit_status
 
 
 def _main(args: argparse.Namespace) -> int:

@@ -1,6 +1,7 @@
 """Benchmark fault tests: runs killed with SIGKILL and re-run end with the rows of uninterrupted runs; progress.csv,
 wall time and the evaluation grid survive resumes; other settings are refused; Ctrl-C ends with one line."""
 
+import contextlib
 import csv
 import json
 import multiprocessing
@@ -255,20 +256,42 @@ def test_ctrl_c_ends_with_one_line(tmp_path, monkeypatch, capsys):
     assert capsys.readouterr().err == INTERRUPTED + "\n"
 
 
-def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
+@contextlib.contextmanager
+def signal_once_the_jobs_run(tmp_path, monkeypatch, signum):
+    """Replace the benchmark's runs by a 60 s sleep and send ``signum`` to this process once two jobs sleep: not
+    earlier, since a signal inside the driver's first imports would leave a half-imported module to later tests."""
+    started = tmp_path / "started"
+    started.mkdir()
+    ended = threading.Event()
+
     def slow(spec, folder, num_threads=1):  # workers are forked: they run this
+        (started / str(os.getpid())).touch()
         time.sleep(60)
 
+    def send():
+        while len(list(started.iterdir())) < 2:
+            if ended.wait(0.05):
+                return
+        os.kill(os.getpid(), signum)
+
     monkeypatch.setattr(execution, "execute_run", slow)
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    try:
+        yield
+    finally:
+        ended.set()
+        sender.join()
+
+
+def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
     # a terminal's Ctrl-C: SIGINT raises KeyboardInterrupt (pytest-xdist workers and background jobs ignore SIGINT)
     previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
-    timer = threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT))
     start = time.time()
-    timer.start()
     try:
-        assert main(["--algos", "mappo", *ARGV, "--seeds", "1-3", "--jobs", "2", "--out", str(tmp_path)]) == 130
+        with signal_once_the_jobs_run(tmp_path, monkeypatch, signal.SIGINT):
+            assert main(["--algos", "mappo", *ARGV, "--seeds", "1-3", "--jobs", "2", "--out", str(tmp_path / "out")]) == 130
     finally:
-        timer.cancel()
         signal.signal(signal.SIGINT, previous_handler)
     assert time.time() - start < 30
     assert capsys.readouterr().err == INTERRUPTED + "\n"
@@ -276,3 +299,66 @@ def test_ctrl_c_stops_the_worker_processes(tmp_path, monkeypatch, capsys):
     while multiprocessing.active_children() and time.time() < deadline:
         time.sleep(0.1)
     assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize(("stop_signal", "status"), [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_the_driver_and_its_jobs_as_ctrl_c_does(tmp_path, monkeypatch, capsys, stop_signal, status):
+    start = time.time()
+    with signal_once_the_jobs_run(tmp_path, monkeypatch, stop_signal):
+        assert main(["--algos", "mappo", *ARGV, "--seeds", "1-3", "--jobs", "2", "--out", str(tmp_path / "out")]) == status
+    assert time.time() - start < 30
+    assert capsys.readouterr().err == INTERRUPTED + "\n"
+    deadline = time.time() + 10
+    while multiprocessing.active_children() and time.time() < deadline:
+        time.sleep(0.1)
+    assert multiprocessing.active_children() == []
+    assert signal.getsignal(stop_signal) == signal.SIG_DFL  # the handler is put back
+
+
+def ended(pid):
+    """Whether process ``pid`` has ended (gone, or a zombie no one has reaped yet)."""
+    try:
+        with open(f"/proc/{pid}/stat") as file:
+            return file.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+def children(pid):
+    """The process ids whose parent is ``pid``."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as file:
+                    if int(file.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        found.append(int(entry))
+            except (FileNotFoundError, ProcessLookupError):
+                continue
+    return found
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads the process table from /proc")
+def test_jobs_end_when_their_driver_is_killed(tmp_path):
+    """SIGKILL to the driver (nothing can be handled): its --jobs processes end within seconds instead of training
+    to the end and waiting forever on the dead driver's pipe with their run folders locked."""
+    driver_code = (
+        "import time, sys\n"
+        "from sb3_saeir.benchmark import execution, main\n"
+        "def slow(spec, folder, num_threads=1):\n"
+        "    time.sleep(120)\n"
+        "execution.execute_run = slow\n"
+        f"sys.exit(main({['--algos', 'mappo', *ARGV, '--seeds', '1-2', '--jobs', '2', '--out', str(tmp_path)]!r}))\n"
+    )
+    driver = subprocess.Popen([sys.executable, "-c", driver_code], env={**os.environ, "OMP_NUM_THREADS": "1"})
+    deadline = time.time() + 120
+    while len(children(driver.pid)) < 2:
+        assert driver.poll() is None and time.time() < deadline
+        time.sleep(0.1)
+    jobs = children(driver.pid)
+    os.kill(driver.pid, signal.SIGKILL)
+    driver.wait()
+    deadline = time.time() + 15
+    while not all(ended(pid) for pid in jobs) and time.time() < deadline:
+        time.sleep(0.1)
+    assert all(ended(pid) for pid in jobs), [pid for pid in jobs if not ended(pid)]

@@ -241,3 +241,30 @@ def test_zoo_train_longer_ends_as_the_longer_run(tmp_path):
     assert_same_parameters(extended / f"{TASK}.zip", uninterrupted / f"{TASK}.zip")
     (extension,) = json.loads((extended / "spec.json").read_text())["extensions"]
     assert (extension["from"], extension["to"]) == (300, 600)
+
+
+@pytest.mark.parametrize(("stop_signal", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_zoo_train_stopped_by_a_signal_says_so_and_exits_with_its_status(tmp_path, stop_signal, status):
+    """Ctrl-C or SIGTERM during ``zoo train``: a checkpoint, one line naming it, 128 + the signal (Ctrl-C exited 0
+    with no line, SIGTERM ended the process with no checkpoint)."""
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
+    command = [sys.executable, "-m", "sb3_saeir.zoo", *RESUMED, "-f", str(tmp_path)]
+    # a terminal's Ctrl-C: the child must not inherit an ignored SIGINT (pytest-xdist workers ignore it)
+    process = subprocess.Popen(
+        command, cwd=REPO, env=env, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    deadline = time.time() + 300
+    while not list(folder.glob("rl_model_*_steps.zip")):
+        assert process.poll() is None, f"the run ended before it could be stopped: {process.communicate()}"
+        assert time.time() < deadline
+        time.sleep(0.005)
+    os.kill(process.pid, stop_signal)
+    stdout, stderr = process.communicate(timeout=300)
+    assert process.returncode == status, stderr.decode()[-2000:]
+    stopped_line = [line for line in stdout.decode().splitlines() if line.startswith("Stopped at the checkpoint")]
+    assert len(stopped_line) == 1 and "--resume continues it" in stopped_line[0]
+    assert not (folder / "done.json").exists()
+    resumed = run_launcher(*RESUMED, "-f", str(tmp_path), "--resume")
+    assert f"Resuming {folder}" in resumed.stdout and (folder / "done.json").is_file()

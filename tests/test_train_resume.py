@@ -181,3 +181,29 @@ def test_a_run_stopped_by_ctrl_c_exits_with_130(tmp_path):
     stdout, _ = process.communicate(timeout=TIMEOUT)
     assert process.returncode == 130
     assert "Stopped at the checkpoint" in stdout.decode() and not (folder / "done.json").exists()
+
+
+@pytest.mark.parametrize(("stop_signal", "status"), [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_at_a_checkpoint_as_ctrl_c_does(reference, tmp_path, stop_signal, status):
+    """kill, timeout, container stops and batch schedulers send SIGTERM first, a closed terminal SIGHUP: the run writes
+    a checkpoint, says so in one line, exits with 128 + the signal, and --resume ends it as the uninterrupted run."""
+    folder = run_folder(tmp_path, "mappo")
+    process = subprocess.Popen(
+        command("mappo", tmp_path), env=child_env(), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    deadline = time.time() + TIMEOUT
+    while not checkpoints(folder):
+        assert process.poll() is None and time.time() < deadline
+        time.sleep(0.005)
+    os.kill(process.pid, stop_signal)
+    stdout, stderr = process.communicate(timeout=TIMEOUT)
+    name = signal.Signals(stop_signal).name
+    assert process.returncode == status, stderr.decode()[-2000:]
+    assert f"{name}: writing a checkpoint" in stdout.decode() and "Stopped at the checkpoint" in stdout.decode()
+    stopped_at = checkpoints(folder)[-1]
+    assert stopped_at.name in stdout.decode().split("Stopped at the checkpoint")[1]
+    assert not (folder / "done.json").exists()
+    resumed = resume("mappo", tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"from {stopped_at.name}" in resumed.stdout
+    assert_same_run(folder, run_folder(reference, "mappo"))

@@ -4,7 +4,10 @@ and many runs in local worker processes or on a Ray cluster, with Ctrl-C stoppin
 
 from __future__ import annotations
 
+import os
 import signal
+import threading
+import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict
@@ -104,9 +107,29 @@ def _safe_execute(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str,
         return {"spec": asdict(spec), "status": "failed", "rows": [], "error": traceback.format_exc()}
 
 
-def _ignore_sigint() -> None:
-    """Worker processes leave Ctrl-C to the driver, which stops them."""
+# Seconds between a worker process's checks that its driver is alive.
+DRIVER_CHECK_PERIOD_S = 0.5
+
+
+def _init_worker(driver_pid: int) -> None:
+    """A worker process leaves Ctrl-C to the driver, which stops it, and ends when the driver is gone, however the
+    driver ended (SIGKILL included): a job never trains on for a driver that cannot take its result, holding its run
+    folder's lock. The run resumes from its newest checkpoint (one at every rollout start).
+
+    :param driver_pid: the driver's process id
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for signum in (signal.SIGTERM, signal.SIGHUP):  # the driver's handlers (forked with it) are the driver's own
+        signal.signal(signum, signal.SIG_DFL)
+    threading.Thread(target=_end_with_driver, args=(driver_pid,), name="end-with-driver", daemon=True).start()
+
+
+def _end_with_driver(driver_pid: int) -> None:
+    """End this process (SIGTERM to itself) once its parent is no longer ``driver_pid``: the driver died and the
+    process was handed to another parent."""
+    while os.getppid() == driver_pid:
+        time.sleep(DRIVER_CHECK_PERIOD_S)
+    os.kill(os.getpid(), signal.SIGTERM)
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
@@ -126,14 +149,14 @@ def run_all(
 
     :param num_threads: torch threads of each run (see :func:`execute_run`)
 
-    Ctrl-C (``KeyboardInterrupt``) stops every job (local worker processes are terminated, Ray tasks cancelled) and
-    is raised again.
+    Ctrl-C, SIGTERM or SIGHUP (``KeyboardInterrupt``) stops every job (local worker processes are terminated, Ray
+    tasks cancelled; each run resumes from its newest checkpoint, written at every rollout start) and is raised again.
     """
     results: list[dict[str, Any]] = []
     if ray_address is not None:
         results = _run_on_ray(specs, out, ray_address, num_threads)
     elif jobs > 1:
-        pool = ProcessPoolExecutor(max_workers=jobs, initializer=_ignore_sigint)
+        pool = ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker, initargs=(os.getpid(),))
         try:
             futures = [pool.submit(_safe_execute, spec, str(run_folder(out, spec)), num_threads) for spec in specs]
             results = [_store(future.result(), out) for future in as_completed(futures)]

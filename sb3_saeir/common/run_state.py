@@ -16,6 +16,7 @@ import csv
 import json
 import os
 import random
+import signal
 import time
 import zipfile
 from collections.abc import Callable
@@ -345,15 +346,20 @@ class RunCheckpointCallback(BaseCallback):
         self.log = log
         self.last_saved = resumed_at
         self.stop_requested = False
+        self.stop_signal: int | None = None  # the signal that asked for the stop (SIGINT, SIGTERM, SIGHUP)
         self.stopped_at: Path | None = None
 
     def path(self, steps: int) -> Path:
         """The checkpoint file for ``steps`` agent-steps."""
         return self.folder / self.name.format(steps=steps)
 
-    def request_stop(self) -> None:
-        """Write a checkpoint at the next rollout start and stop training there."""
+    def request_stop(self, signum: int = signal.SIGINT) -> None:
+        """Write a checkpoint at the next rollout start and stop training there.
+
+        :param signum: the signal that asked for it (the command's exit status is 128 + it)
+        """
         self.stop_requested = True
+        self.stop_signal = int(signum)
 
     def _on_rollout_start(self) -> None:
         steps = self.model.num_timesteps

@@ -22,6 +22,7 @@ from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
 from sb3_saeir.experiment import find_run_folder
+from sb3_saeir.run import interrupted_exit_status
 from sb3_saeir.run_record import check_run_folder_writable, read_spec_file
 from sb3_saeir.zoo.registration import (
     WRAPPER_NAME,
@@ -277,6 +278,9 @@ def _run_train(argv: Sequence[str]) -> int:
     finally:
         if command.lock is not None:
             command.lock.release()
+    if command.stopped_at is not None:
+        print(f"Stopped at the checkpoint {command.stopped_at}: the same command with --resume continues it.")
+        return interrupted_exit_status(command.stop_signal)
     return 0
 
 

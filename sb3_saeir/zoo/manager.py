@@ -37,6 +37,8 @@ class ZooTrain:
     :param record: its settings record
     :param lock: the run folder's lock: the resumed folder's, or the new run's (taken by
         :meth:`RunExperimentManager.setup_experiment`); the launcher gives it back
+    :param stopped_at: the checkpoint a run stopped at early (Ctrl-C, SIGTERM, SIGHUP; set by ``learn``)
+    :param stop_signal: the signal that stopped it
     """
 
     package_env: bool
@@ -44,6 +46,8 @@ class ZooTrain:
     folder: Path | None = None
     record: dict[str, Any] | None = None
     lock: RunFolderLock | None = None
+    stopped_at: Path | None = None
+    stop_signal: int | None = None
 
 
 class RunExperimentManager(ExperimentManager):
@@ -180,6 +184,8 @@ class RunExperimentManager(ExperimentManager):
             output=RunOutput(command_line=True, verbose=self.verbose, progress_bar=self.show_progress, callbacks=callbacks),
             announce=_announce_resume,
         )
+        assert run.checkpoints is not None
+        self.zoo_train.stopped_at, self.zoo_train.stop_signal = run.checkpoints.stopped_at, run.checkpoints.stop_signal
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         """On a package task nothing: the run saved ``<task>.zip`` (:meth:`learn`)."""

@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_saeir.common.atomic import save_model
 from sb3_saeir.common.run_files import BEST_MODEL_FILE, FINAL_MODEL
 from sb3_saeir.common.run_state import load_resume_state, read_zip_data, saved_policy_class
+from sb3_saeir.common.utils import MAX_SEED
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.config import (
     ALGOS,
@@ -36,6 +37,15 @@ from sb3_saeir.envs import get_task_spec
 
 # Seed offset of evaluation envs: evaluation games never replay the training games' seeds.
 EVAL_SEED_OFFSET = 10_000
+
+
+def evaluation_seed(seed: int) -> int:
+    """The base seed of a run's evaluation games: ``10_000 + seed``, wrapped into the seeds' range ``0 .. 2**32 - 1``
+    (every seed the package accepts has one: ``--seed 4294967295`` evaluates on base seed 9999).
+
+    :param seed: the run's seed
+    """
+    return (EVAL_SEED_OFFSET + seed) % (MAX_SEED + 1)
 # At most this many games play an evaluation in parallel.
 MAX_EVAL_GAMES = 10
 
@@ -110,9 +120,9 @@ class Experiment:
         """An evaluation env of ``min(n_episodes, 10)`` games (closed by :meth:`close`).
 
         :param n_episodes: game episodes per evaluation
-        :param seed: base seed (default ``10_000 + seed``, apart from the training games)
+        :param seed: base seed (default ``10_000 + seed``, apart from the training games: :func:`evaluation_seed`)
         """
-        eval_seed = EVAL_SEED_OFFSET + self.seed if seed is None else seed
+        eval_seed = evaluation_seed(self.seed) if seed is None else seed
         env = make_multiagent_vec_env(
             self.task, n_games=max(1, min(n_episodes, MAX_EVAL_GAMES)), seed=eval_seed, **self.env_kwargs
         )

@@ -53,7 +53,7 @@ from sb3_saeir.common.run_state import (
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
 from sb3_saeir.evaluation import MultiAgentEvalCallback
-from sb3_saeir.experiment import EVAL_SEED_OFFSET, Experiment
+from sb3_saeir.experiment import Experiment, evaluation_seed
 from sb3_saeir.run_record import (
     ResumePoint,
     RunLog,
@@ -579,7 +579,7 @@ class Run:
 
     def _evaluator(self, experiment: Experiment, done_steps: int | None) -> RunEvalCallback:
         assert experiment.env is not None and self.clock is not None
-        eval_seed = EVAL_SEED_OFFSET + self.spec.seed
+        eval_seed = evaluation_seed(self.spec.seed)
         rows, lost = split_rows(self.folder / EVALUATIONS_FILE, done_steps, self.log)
         return RunEvalCallback(
             experiment.make_eval_env(self.spec.eval_episodes, seed=eval_seed),

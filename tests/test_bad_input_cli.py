@@ -613,3 +613,33 @@ def test_zoo_params_value_that_is_not_python_names_the_fix(tmp_path, capsys):
     assert "-params compile:bogus: rl-zoo3 reads each value as a Python expression and 'bogus' is not one" in line
     assert "NameError" in line and "-params \"compile:'bogus'\"" in line
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_evaluation_seed_wraps_into_the_seed_range():
+    from sb3_saeir.experiment import evaluation_seed
+
+    assert evaluation_seed(0) == 10_000 and evaluation_seed(7) == 10_007  # every seed used so far keeps its games
+    assert evaluation_seed(2**32 - 1) == 9_999
+    assert evaluation_seed(2**32 - 10_001) == 2**32 - 1
+
+
+@pytest.mark.parametrize("seed", [2**32 - 1, 2**32 - 10_000])
+def test_every_accepted_seed_trains_and_evaluates(tmp_path, capsys, seed):
+    """The top of the documented range (evaluation games used to get 10_000 + seed, outside it)."""
+    argv = ["--algo", "mappo", "--task", "cn-sparse-n3", "--n-games", "2", "-n", "60", "-params", "n_steps:10"]
+    argv += ["n_epochs:1", "--eval-freq", "60", "--eval-episodes", "2", "--verbose", "0", "--seed", str(seed)]
+    assert train_main([*argv, "-f", str(tmp_path / "train")]) == 0
+    assert f"seed {seed}" in capsys.readouterr().out
+    assert (tmp_path / "train" / "mappo" / "cn-sparse-n3_1" / "done.json").is_file()
+    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", str(seed), "-n", "60", "--n-games", "2"]
+    argv += ["--eval-freq", "60", "--eval-episodes", "2", "-params", "n_steps:10", "--out", str(tmp_path / "bench")]
+    assert benchmark_main(argv) == 0
+    assert (tmp_path / "bench" / "runs" / "mappo" / f"cn-sparse-n3_s{seed}" / "done.json").is_file()
+
+
+def test_zoo_train_refuses_a_seed_out_of_range_before_anything_is_written(tmp_path, capsys):
+    argv = ["train", "--algo", "mappo", "--env", "cn-sparse-n3", "--seed", str(2**64), "-n", "60"]
+    assert zoo_main([*argv, "-params", "n_envs:2", "-f", str(tmp_path / "logs")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"--seed={2**64} is not a seed; pass an integer from 0 to 2**32 - 1 (or -1 to draw one)" in line
+    assert not (tmp_path / "logs").exists()

@@ -104,7 +104,8 @@ def prepare_train_args(argv: Sequence[str]) -> list[str]:
 
 def check_train_args(argv: Sequence[str]) -> None:
     """The checks of ``python -m sb3_saeir.train`` on the rl-zoo3 ``train`` arguments of a package task (made by
-    :func:`prepare_train_args`), before rl-zoo3 creates anything: the log and tensorboard folders can be written, and
+    :func:`prepare_train_args`), before rl-zoo3 creates anything: ``--seed`` is a seed (or -1), the log and
+    tensorboard folders can be written, and
     ``n_envs`` (config entry or ``-params``) is a positive integer (rl-zoo3 fails on it after creating the run folder).
 
     :param argv: the arguments for ``rl_zoo3.train.train()``
@@ -117,11 +118,14 @@ def check_train_args(argv: Sequence[str]) -> None:
             (["-f", "--log-folder"], {"default": "logs"}),
             (["-tb", "--tensorboard-log"], {"default": ""}),
             (["-params", "--hyperparams"], {"nargs": "+", "action": "append", "default": []}),
+            (["--seed"], {"default": None}),
         ]
     )
     args = parser.parse_known_args(list(argv))[0]
     if not is_package_env(args.env):
         return
+    if args.seed is not None and args.seed.lstrip("-").isdigit():  # not a whole number: rl-zoo3's parser refuses it
+        check_seed_option(int(args.seed), draw=-1)  # numpy's seeding would fail on it later, after the folder exists
     check_folder("-f/--log-folder", args.log_folder)
     check_folder("-tb/--tensorboard-log", args.tensorboard_log or None)
     for item in (item for group in args.hyperparams for item in group):

@@ -1,7 +1,6 @@
 """sb3-saeir: cooperative multi-agent RL with sparse rewards for Stable-Baselines3 (SAEIR, IJCAI-24)."""
 
-from pathlib import Path as _Path
-
+from sb3_saeir.common.utils import PACKAGE_VERSION
 from sb3_saeir.common.vec_env import GroupedVecEnv, MultiAgentVecEnv, make_multiagent_vec_env
 
 # Importing sb3_saeir.envs registers the package's tasks into sb3_saeir.common.registry. Importing any sb3_saeir module
@@ -10,7 +9,7 @@ from sb3_saeir.envs import list_tasks, make_task, register_task
 from sb3_saeir.mappo import MAPPO, MAPPOPolicy, SNMAPPOPolicy
 from sb3_saeir.saeir_ppo import SAEIR_PPO, MSHGPolicy
 
-__version__ = (_Path(__file__).parent / "version.txt").read_text().strip()
+__version__ = PACKAGE_VERSION
 
 __all__ = [
     "MAPPO",

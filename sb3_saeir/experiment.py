@@ -46,6 +46,8 @@ def evaluation_seed(seed: int) -> int:
     :param seed: the run's seed
     """
     return (EVAL_SEED_OFFSET + seed) % (MAX_SEED + 1)
+
+
 # At most this many games play an evaluation in parallel.
 MAX_EVAL_GAMES = 10
 

@@ -16,6 +16,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager, suppress
@@ -50,6 +51,7 @@ from sb3_saeir.common.run_state import (
     progress_logger,
     save_checkpoint,
 )
+from sb3_saeir.common.utils import PACKAGE_VERSION
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
 from sb3_saeir.evaluation import MultiAgentEvalCallback
@@ -388,6 +390,14 @@ class Run:
             )
         self.stored = stored
         self.extended_from = extended_budget(stored, self.spec.n_timesteps)
+        other_version = stored.get("version")
+        if isinstance(other_version, str) and other_version != PACKAGE_VERSION:
+            warnings.warn(
+                f"the run in {self.folder} was recorded by sb3-saeir {other_version} and goes on with {PACKAGE_VERSION}: "
+                "segments.json records the version of each segment.",
+                UserWarning,
+                stacklevel=2,
+            )
 
     def check_resumable(self, stored: dict[str, Any]) -> None:
         """Find where ``--resume`` continues the run (:meth:`open`: its newest checkpoint that loads, or its final

@@ -113,3 +113,36 @@ def test_save_load_on_a_user_parallel_env(algo, toy_env, tiny_kwargs, tmp_path):
     model.save(tmp_path / "toy.zip")
     loaded = algo.load(tmp_path / "toy.zip", device="cpu")
     np.testing.assert_array_equal(deterministic_actions(loaded, observations), deterministic_actions(model, observations))
+
+
+def test_a_zip_records_the_package_version_and_another_version_is_named_on_load(tmp_path, recwarn):
+    """``save`` records the sb3-saeir version in the zip's data; ``load`` of a zip from another version loads with one
+    warning naming both (an older zip without the record, or the same version, loads without a word)."""
+    import json
+    import zipfile
+
+    from sb3_saeir import __version__, make_multiagent_vec_env
+
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
+    MAPPO("MAPPOPolicy", env, n_steps=10, n_epochs=1, seed=0).save(tmp_path / "model.zip")
+    with zipfile.ZipFile(tmp_path / "model.zip") as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    assert json.loads(entries["data"])["sb3_saeir_version"] == __version__
+    MAPPO.load(tmp_path / "model.zip")
+    assert not [w for w in recwarn if "sb3-saeir" in str(w.message)]
+    data = json.loads(entries["data"])
+    for name, version in (("old.zip", "0.1.0"), ("unrecorded.zip", None)):
+        if version is None:
+            del data["sb3_saeir_version"]
+        else:
+            data["sb3_saeir_version"] = version
+        with zipfile.ZipFile(tmp_path / name, "w") as archive:
+            for entry, content in entries.items():
+                archive.writestr(entry, json.dumps(data) if entry == "data" else content)
+    with pytest.warns(UserWarning, match=rf"saved by sb3-saeir 0\.1\.0; this is {__version__}") as caught:
+        MAPPO.load(tmp_path / "old.zip")
+    assert len([w for w in caught if "sb3-saeir" in str(w.message)]) == 1 and "\n" not in str(caught[0].message)
+    recwarn.clear()
+    MAPPO.load(tmp_path / "unrecorded.zip")
+    assert not [w for w in recwarn if "sb3-saeir" in str(w.message)]
+    env.close()

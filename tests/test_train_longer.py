@@ -144,3 +144,22 @@ def test_extension_record_keeps_earlier_extensions():
     assert [(e["from"], e["to"]) for e in record["extensions"]] == [(450, 900), (900, 1800)]
     assert record["extensions"][1]["finished"] == {"timesteps": 900}
     assert stored["n_timesteps"] == 900 and len(stored["extensions"]) == 1  # not changed in place
+
+
+def test_a_run_recorded_by_another_version_is_named_where_it_goes_on(finished_tiny_run, tmp_path, capsys):
+    """Training a run of another sb3-saeir version longer says so in one line; segments.json records the version of
+    each segment (the record kept the old version without a word)."""
+    from sb3_saeir import __version__
+
+    log_folder = tmp_path / "logs"
+    folder = log_folder / "mappo" / f"{TASK}_1"
+    shutil.copytree(finished_tiny_run, folder)
+    spec = json.loads((folder / "spec.json").read_text())
+    spec["options"]["-f"] = str(log_folder)
+    spec["version"] = "0.1.0"
+    (folder / "spec.json").write_text(json.dumps(spec))
+    assert train_main(with_budget(argv(log_folder, "--resume"), LONGER)) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if "sb3-saeir 0.1.0" in line]
+    assert len(lines) == 1 and f"recorded by sb3-saeir 0.1.0 and goes on with {__version__}" in lines[0]
+    segments = json.loads((folder / "segments.json").read_text())
+    assert segments[-1]["version"] == __version__

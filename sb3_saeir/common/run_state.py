@@ -31,6 +31,7 @@ from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger, f
 
 from sb3_saeir.common.atomic import atomic_file, atomic_write_text, keep_damaged
 from sb3_saeir.common.run_files import PROGRESS_FILE
+from sb3_saeir.common.utils import PACKAGE_VERSION
 
 # The entry of a checkpoint zip that holds the resume state (SB3's load ignores it).
 RESUME_ENTRY = "resume_state.pkl"
@@ -565,7 +566,8 @@ class SegmentClock:
         self.segments: list[dict[str, Any]] = json.loads(path.read_text()) if path.is_file() else []
         self.previous_s = float(sum(segment["wall_s"] for segment in self.segments))
         self.start = time.time()
-        self.segments.append({"started": utc_stamp(), "resumed_at": resumed_at, "reached": resumed_at, "wall_s": 0.0})
+        segment = {"started": utc_stamp(), "resumed_at": resumed_at, "reached": resumed_at, "wall_s": 0.0}
+        self.segments.append({**segment, "version": PACKAGE_VERSION})  # which version trained each segment
         self.tick(resumed_at)
 
     def tick(self, steps: int) -> None:

@@ -24,6 +24,11 @@ MAX_DEFAULT_THREADS = 2
 _PACKAGE_FOLDER = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep  # sb3_saeir/
 
 
+# The package's version (``sb3_saeir.__version__``), readable below the package's top level: model zips, run records and
+# segments record it.
+PACKAGE_VERSION = (Path(__file__).parent.parent / "version.txt").read_text().strip()
+
+
 def user_stacklevel() -> int:
     """The ``stacklevel`` that makes :func:`warnings.warn`, called where this is called, name the first line outside
     this package: the user's call, as SB3's warnings do, however deep the package's calls behind it run

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import os
 import pathlib
+import warnings
 from collections.abc import Iterable
 from typing import Any, ClassVar, TypeVar
 
@@ -33,7 +34,7 @@ from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCr
 from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
 from sb3_saeir.common.type_aliases import GroupedRecurrentSamples, MultiAgentStates
-from sb3_saeir.common.utils import check_bool, check_seed
+from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed, user_stacklevel
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback  # importing sb3_saeir.intrinsic registers its bonuses
 from sb3_saeir.mappo.losses import actor_losses, critic_loss, scale_advantage_weights
 
@@ -500,7 +501,8 @@ class MAPPO(OnPolicyAlgorithm):
         (:func:`~sb3_saeir.common.checks.check_load_arguments`), a model of another library
         (:func:`~sb3_saeir.common.checks.check_saved_model`), a file that is not a complete model zip, or
         ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit (recurrent against
-        feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`)."""
+        feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`). A model saved by another
+        sb3-saeir version (``save`` records it) loads with a one-line warning naming both versions."""
         name = cls.__name__
         overrides = {**(custom_objects or {}), **kwargs}
         checks.check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
@@ -516,6 +518,14 @@ class MAPPO(OnPolicyAlgorithm):
         with checks.model_zip_errors(name, path, custom_objects):
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         model._apply_overrides(overrides)
+        saved_version = (data or {}).get("sb3_saeir_version")
+        if isinstance(saved_version, str) and saved_version != PACKAGE_VERSION:
+            warnings.warn(
+                f"{name}.load: {path} was saved by sb3-saeir {saved_version}; this is {PACKAGE_VERSION}. It loads; "
+                "check the CHANGELOG before comparing its results with this version's.",
+                UserWarning,
+                stacklevel=user_stacklevel(),
+            )
         return model
 
     def _apply_overrides(self, overrides: dict[str, Any]) -> None:
@@ -591,6 +601,7 @@ class MAPPO(OnPolicyAlgorithm):
         :param include: name of parameters that might be excluded but should be included anyway
         """
         checks.check_save_path(type(self).__name__, path)
+        self.sb3_saeir_version = PACKAGE_VERSION  # saved with the model's data; load names another version
         if isinstance(path, (str, os.PathLike)):
             save_zip(path, lambda file: super(MAPPO, self).save(file, exclude=exclude, include=include))
         else:

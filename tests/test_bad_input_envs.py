@@ -474,3 +474,53 @@ def test_a_constructor_that_takes_any_keyword_gets_them_unchecked():
     env = make_multiagent_vec_env(build, n_games=2, n_agents=2, anything=1)
     assert env.n_agents == 2 and seen == {"n_agents": 2, "anything": 1}
     env.close()
+
+
+# ------------------------------------------------------------- what reset and step return, against PettingZoo's API
+class OffApiMeetEnv(ToyMeetEnv):
+    """:class:`ToyMeetEnv` whose reset or step returns something PettingZoo's parallel API does not: ``fault`` is
+    ``obs_only_reset`` (the API before 1.22), ``none_infos_reset``, ``empty_infos_step`` or ``array_reward``."""
+
+    def __init__(self, fault, n_agents=3):
+        super().__init__(n_agents=n_agents)
+        self.fault = fault
+
+    def reset(self, seed=None, options=None):
+        observations, infos = super().reset(seed=seed, options=options)
+        if self.fault == "obs_only_reset":
+            return observations
+        if self.fault == "none_infos_reset":
+            return observations, None
+        return observations, infos
+
+    def step(self, actions):
+        observations, rewards, terminations, truncations, infos = super().step(actions)
+        if self.fault == "empty_infos_step":
+            infos = {}
+        if self.fault == "array_reward":
+            rewards = {agent: np.array([reward]) for agent, reward in rewards.items()}
+        return observations, rewards, terminations, truncations, infos
+
+
+@pytest.mark.parametrize("n_agents", [1, 2, 3])
+@pytest.mark.parametrize("num_cpus", [0, 2])
+def test_a_reset_without_infos_is_named_for_every_agent_count(n_agents, num_cpus):
+    """The API before PettingZoo 1.22 (observations alone) gave three raw errors, by the number of agents."""
+    with pytest.raises(ValueError) as excinfo:
+        _run(make_multiagent_vec_env(lambda: OffApiMeetEnv("obs_only_reset", n_agents), n_games=2, num_cpus=num_cpus))
+    message = _one_line(excinfo, "toy_meet_v0: game 0, reset")
+    assert "reset returned a dict (observations alone" in message and "(observations, infos)" in message
+
+
+@pytest.mark.parametrize(
+    "fault, expected",
+    [
+        ("none_infos_reset", "reset returned infos = NoneType None; PettingZoo's parallel API returns (observations, infos)"),
+        ("empty_infos_step", "agent 0 (agent_0), step 1 of its episode: no info; step must return an info dict"),
+        ("array_reward", "agent 0 (agent_0), step 1 of its episode: the reward is ndarray array([0.]), not a number"),
+    ],
+)
+def test_off_api_returns_are_named_in_one_line(fault, expected):
+    with pytest.raises(ValueError) as excinfo:
+        _run(make_multiagent_vec_env(lambda: OffApiMeetEnv(fault), n_games=2))
+    assert expected in _one_line(excinfo, "toy_meet_v0: game 0")

@@ -29,6 +29,11 @@ NUMBER_KINDS = "biuf"
 HUGE_REWARD = 1e18
 
 
+# The parts of what a parallel env's reset and step return (PettingZoo 1.22 and later).
+RESET_PARTS = ("observations", "infos")
+STEP_PARTS = ("observations", "rewards", "terminations", "truncations", "infos")
+
+
 class GameFaultError(ValueError):
     """A game returned something the vec env cannot use (a missing reward, an observation that is not numbers, ...).
 
@@ -81,14 +86,15 @@ class CheckedParallelEnv(BaseParallelWrapper):
         return [agent for agent in self._agent_names if agent in present]
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        observations, infos = self.env.reset(seed=seed, options=options)
         self.episode_step = 0
+        observations, infos = self._check_returned(self.env.reset(seed=seed, options=options), RESET_PARTS)
         self._check_observations(observations)
         return observations, infos
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
-        observations, rewards, terminations, truncations, infos = self.env.step(actions)
         self.episode_step += 1
+        returned = self._check_returned(self.env.step(actions), STEP_PARTS)
+        observations, rewards, terminations, truncations, infos = returned
         remaining = set(self.env.agents)
         if remaining and remaining != set(self.env.possible_agents):
             missing = sorted(set(self.env.possible_agents) - remaining)
@@ -101,6 +107,38 @@ class CheckedParallelEnv(BaseParallelWrapper):
         values = self._check_rewards(rewards)
         self._warn_faults(values, terminations, truncations)
         return observations, rewards, terminations, truncations, infos
+
+    def _check_returned(self, returned: Any, parts: tuple[str, ...]) -> tuple:
+        """What ``reset`` or ``step`` returned, as PettingZoo's parallel API has it (a tuple of ``parts``, each a
+        dict), or one line naming the env, the game, the call and what it must return: the API before PettingZoo 1.22
+        returned ``reset``'s observations alone, which unpacked into other raw errors for each number of agents.
+
+        :param returned: the call's result
+        :param parts: the names of the tuple's parts (:data:`RESET_PARTS`, :data:`STEP_PARTS`)
+        """
+        call = "reset" if parts is RESET_PARTS else "step"
+        shape = f"({', '.join(parts)}), each a dict keyed by agent"
+        if not isinstance(returned, tuple) or len(returned) != len(parts):
+            got = (
+                "a dict (observations alone: the PettingZoo API before 1.22?)"
+                if isinstance(returned, dict)
+                else _describe(returned)
+            )
+            raise GameFaultError(f"{self._where()}: {call} returned {got}; PettingZoo's parallel API returns {shape}.")
+        for name, part in zip(parts, returned):
+            if not isinstance(part, dict):
+                raise GameFaultError(
+                    f"{self._where()}: {call} returned {name} = {_describe(part)}; PettingZoo's parallel API returns "
+                    f"{shape} ({{}} for an agent with no {name[:-1] if name == 'infos' else name})."
+                )
+        infos = returned[-1]
+        missing = [agent for agent in self._agent_names if agent not in infos]
+        if missing and call == "step":
+            raise GameFaultError(
+                f"{self._where(missing[0])}: no info; {call} must return an info dict for every agent of "
+                "possible_agents ({} when there is nothing to say)."
+            )
+        return returned
 
     def _game_name(self) -> str:
         return str((getattr(self.env, "metadata", None) or {}).get("name") or type(self.env.unwrapped).__name__)
@@ -177,7 +215,7 @@ class CheckedParallelEnv(BaseParallelWrapper):
         if values.dtype.kind not in NUMBER_KINDS or values.shape != (len(possible),):
             for agent in possible:
                 value = np.asarray(rewards[agent])
-                if value.dtype.kind not in NUMBER_KINDS or value.size != 1:
+                if value.dtype.kind not in NUMBER_KINDS or value.shape != ():
                     raise GameFaultError(
                         f"{self._where(agent)}: the reward is {_describe(rewards[agent])}, not a number; return a "
                         "float (0.0 when the agent earned nothing)."

@@ -756,3 +756,50 @@ def test_set_parameters_with_an_entry_missing_sets_nothing(env, tiny_kwargs):
     assert all(np.array_equal(after[name].numpy(), value.numpy()) for name, value in before.items())
     model.set_parameters(other, exact_match=False)  # a positive control: the others are set
     assert not np.array_equal(model.policy.state_dict()["actor.mlp.1.weight"].numpy(), before["actor.mlp.1.weight"].numpy())
+
+
+@pytest.fixture
+def small_model():
+    from sb3_saeir import MAPPO, make_multiagent_vec_env
+
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
+    yield MAPPO("MAPPOPolicy", env, n_steps=10, n_epochs=1, policy_kwargs=dict(hidden_size=8), seed=0)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, message",
+    [
+        ({"callback": 42}, TypeError, "MAPPO.learn: callback=42 is not a callback; pass an SB3 BaseCallback"),
+        ({"callback": [None, "eval"]}, TypeError, "MAPPO.learn: callback list item 'eval' is not a callback"),
+        ({"log_interval": 0}, ValueError, "MAPPO.learn: log_interval=0 must be a whole number >= 1"),
+        ({"log_interval": 1.5}, ValueError, "MAPPO.learn: log_interval=1.5 must be a whole number >= 1"),
+    ],
+)
+def test_learn_refuses_a_bad_callback_or_log_interval_before_training(small_model, kwargs, error, message):
+    with pytest.raises(error) as excinfo:
+        small_model.learn(60, **kwargs)
+    assert message in str(excinfo.value) and "\n" not in str(excinfo.value)
+    assert small_model.num_timesteps == 0
+
+
+def test_save_none_is_refused_in_one_line(small_model):
+    with pytest.raises(TypeError, match=r"MAPPO.save: path=None; pass a file path \(such as 'model.zip'\)"):
+        small_model.save(None)
+
+
+@pytest.mark.parametrize("exact_match", [True, False])
+def test_set_parameters_of_another_shape_is_refused_and_nothing_is_set(small_model, exact_match):
+    import torch as th
+
+    params = small_model.get_parameters()
+    before = {key: value.clone() for key, value in small_model.policy.state_dict().items()}
+    first, second = list(params["policy"])[:2]
+    params["policy"][first] = th.ones(3, 3)
+    params["policy"][second] = th.ones_like(params["policy"][second])  # a good one: must not be set either
+    with pytest.raises(ValueError) as excinfo:
+        small_model.set_parameters(params, exact_match=exact_match)
+    message = str(excinfo.value)
+    assert f"policy[{first!r}] (3, 3) for" in message and "nothing was set" in message and "\n" not in message
+    after = small_model.policy.state_dict()
+    assert all(th.equal(before[key], after[key]) for key in before)

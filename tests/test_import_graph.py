@@ -27,6 +27,7 @@ ALGORITHM_MODULES = (
     "sb3_saeir.common.policies",
     "sb3_saeir.common.buffers",
     "sb3_saeir.common.checks",
+    "sb3_saeir.common.method_arguments",
     "sb3_saeir.mappo",
     "sb3_saeir.saeir_ppo",
     "sb3_saeir.intrinsic",

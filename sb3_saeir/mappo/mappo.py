@@ -25,7 +25,7 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_saeir.common import checks
+from sb3_saeir.common import checks, method_arguments
 from sb3_saeir.common.atomic import save_zip
 from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
@@ -475,6 +475,8 @@ class MAPPO(OnPolicyAlgorithm):
         if isinstance(total_timesteps, float) and float(total_timesteps).is_integer():
             total_timesteps = int(total_timesteps)  # 1e6, as SB3 takes it (a fraction is refused below)
         checks.check_ranges(type(self).__name__, total_timesteps=total_timesteps)
+        method_arguments.check_callback(f"{type(self).__name__}.learn", callback)
+        method_arguments.check_log_interval(f"{type(self).__name__}.learn", log_interval)
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
@@ -575,6 +577,7 @@ class MAPPO(OnPolicyAlgorithm):
             if isinstance(saved_policy, dict):
                 checks.check_network_kind(owner, saved_policy, self.policy)
             checks.check_parameter_names(owner, params, self)
+        method_arguments.check_parameter_shapes(owner, params, self)
         super().set_parameters(params, exact_match=exact_match, device=device)
 
     def set_random_seed(self, seed: int | None = None) -> None:
@@ -600,6 +603,10 @@ class MAPPO(OnPolicyAlgorithm):
         :param exclude: name of parameters that should be excluded in addition to the default ones
         :param include: name of parameters that might be excluded but should be included anyway
         """
+        if path is None:
+            raise TypeError(
+                f"{type(self).__name__}.save: path=None; pass a file path (such as 'model.zip') or a binary file object."
+            )
         checks.check_save_path(type(self).__name__, path)
         self.sb3_saeir_version = PACKAGE_VERSION  # saved with the model's data; load names another version
         if isinstance(path, (str, os.PathLike)):

@@ -1,0 +1,72 @@
+"""Checks of the arguments of an algorithm's methods after construction (``learn``, ``set_parameters``): each bad
+argument is one line naming it and what it must be, before SB3 or torch fail on it with their own errors
+(``docs/guide/algorithms.md``). The constructor's checks are in :mod:`sb3_saeir.common.checks`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch as th
+from stable_baselines3.common.callbacks import BaseCallback
+
+
+def check_callback(owner: str, callback: Any) -> None:
+    """Refuse a ``learn`` callback SB3 cannot use: it takes ``None``, a ``BaseCallback``, a callable ``(locals,
+    globals) -> bool`` or a list of these (SB3 failed with ``'int' object is not callable`` in the first step).
+
+    :param owner: who checks, for the message (``"MAPPO.learn"``)
+    :param callback: the ``callback`` argument
+    """
+    items = callback if isinstance(callback, list) else [callback]
+    for item in items:
+        if item is not None and not isinstance(item, BaseCallback) and not callable(item):
+            where = f"callback list item {item!r}" if isinstance(callback, list) else f"callback={item!r}"
+            raise TypeError(
+                f"{owner}: {where} is not a callback; pass an SB3 BaseCallback, a function (locals, globals) -> bool, "
+                "a list of these, or None."
+            )
+
+
+def check_log_interval(owner: str, log_interval: Any) -> None:
+    """Refuse a ``log_interval`` that is not a whole number >= 1 (SB3 divided by it: ``log_interval=0`` was a
+    ``ZeroDivisionError`` after the first rollout).
+
+    :param owner: who checks, for the message (``"MAPPO.learn"``)
+    :param log_interval: the ``log_interval`` argument (rollouts between two logger dumps)
+    """
+    if isinstance(log_interval, bool) or not isinstance(log_interval, int) or log_interval < 1:
+        raise ValueError(
+            f"{owner}: log_interval={log_interval!r} must be a whole number >= 1 (rollouts between two logger dumps)."
+        )
+
+
+def check_parameter_shapes(owner: str, params: dict[str, Any], model: Any) -> None:
+    """For ``set_parameters``: refuse tensors of another shape than the model's, before any is set (torch's
+    ``load_state_dict`` listed each over several lines, having set the others).
+
+    :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
+    :param params: object name (``"policy"``, ...) -> state dict, as ``get_parameters`` returns them
+    :param model: the model whose parameters are set
+    :raises ValueError: one line naming a few mismatched entries, their shapes and the fix
+    """
+    from stable_baselines3.common.save_util import recursive_getattr
+
+    mismatched = []
+    for name, given in params.items():
+        try:
+            target = recursive_getattr(model, name) if isinstance(given, dict) else None
+        except AttributeError:  # not the model's: exact_match=False skips it, exact_match=True has named it
+            continue
+        if not isinstance(target, th.nn.Module):
+            continue
+        own = target.state_dict()
+        for key, tensor in given.items():
+            if key in own and isinstance(tensor, th.Tensor) and tuple(tensor.shape) != tuple(own[key].shape):
+                mismatched.append(f"{name}[{key!r}] {tuple(tensor.shape)} for {tuple(own[key].shape)}")
+    if mismatched:
+        shown = "; ".join(mismatched[:3]) + (f" and {len(mismatched) - 3} more" if len(mismatched) > 3 else "")
+        raise ValueError(
+            f"{owner}: parameters of another shape than this model's: {shown}; nothing was set. Pass the parameters of "
+            "a model built with the same network settings (policy_kwargs) and env."
+        )

@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("-n", "--n-episodes", type=count, default=100, help="game episodes to evaluate")
     parser.add_argument("--n-games", type=count, default=10, help="games played in parallel")
     parser.add_argument("--stochastic", action="store_true", help="sample actions instead of the greedy ones")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=count, default=0)
     parser.add_argument("--gif", default=None, help="write a GIF of one game to this path")
     parser.add_argument("--gif-episodes", type=count, default=1)
     parser.add_argument("--num-threads", type=int, default=0, help="torch threads (0: the free cores, at most 2)")

@@ -290,7 +290,7 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--task", "--env", dest="task", default="cn-sparse-n3", help=f"task id: {', '.join(list_tasks())}")
     parser.add_argument(
         "--seed",
-        type=int,
+        type=count,  # 1e3 as -n takes it
         default=None,
         help=f"random seed, 0 .. 2**32 - 1 ({DRAW_SEED}: draw one); default 0, at --resume the run's own",
     )

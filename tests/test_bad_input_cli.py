@@ -643,3 +643,14 @@ def test_zoo_train_refuses_a_seed_out_of_range_before_anything_is_written(tmp_pa
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert f"--seed={2**64} is not a seed; pass an integer from 0 to 2**32 - 1 (or -1 to draw one)" in line
     assert not (tmp_path / "logs").exists()
+
+
+def test_seed_takes_the_number_forms_that_n_takes(tmp_path, capsys):
+    """``--seed 1e3`` was refused ("invalid int value") where ``-n 1e3`` was taken."""
+    argv = ["--algo", "mappo", "--task", "cn-sparse-n3", "--n-games", "2", "-n", "6e1", "-params", "n_steps:10"]
+    argv += ["n_epochs:1", "--eval-freq", "0", "--verbose", "0", "--seed", "1e3", "-f", str(tmp_path)]
+    assert train_main(argv) == 0
+    assert "seed 1000" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        train_main([*argv[:-4], "--seed", "1.5e0", "-f", str(tmp_path)])
+    assert "'1.5e0' is not a whole number" in capsys.readouterr().err

@@ -141,3 +141,33 @@ def test_the_lock_is_released_and_taken_again():
         again = RunFolderLock(folder).acquire()
         assert again.held
         again.release()
+
+
+@pytest.mark.skipif(not os.path.isfile("/proc/locks"), reason="the holder is read from the kernel's lock table")
+def test_a_stopped_holder_is_said_to_be_stopped(tmp_path):
+    """A SIGSTOPped holder was named by pid only: "wait for it to end" would wait forever."""
+    code = (
+        "import time; from sb3_saeir.common.run_lock import RunFolderLock; "
+        f"RunFolderLock({str(tmp_path)!r}).acquire(); print('locked', flush=True); time.sleep(120)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(RunFolderInUseError) as running:
+            RunFolderLock(tmp_path).acquire()
+        assert f"process {holder.pid}" in str(running.value) and "which is stopped" not in str(running.value)
+        os.kill(holder.pid, signal.SIGSTOP)
+        deadline = time.time() + 10
+        while time.time() < deadline:
+            with open(f"/proc/{holder.pid}/stat") as file:
+                if file.read().rsplit(")", 1)[1].split()[0] in ("T", "t"):
+                    break
+            time.sleep(0.05)
+        with pytest.raises(RunFolderInUseError) as stopped:
+            RunFolderLock(tmp_path).acquire()
+        message = str(stopped.value)
+        assert f"process {holder.pid}" in message and "which is stopped (SIGSTOP or Ctrl-Z)" in message
+        assert f"kill -CONT {holder.pid}" in message and "\n" not in message
+    finally:
+        os.kill(holder.pid, signal.SIGKILL)
+        holder.wait()

@@ -76,8 +76,20 @@ def lock_holder(fd: int) -> str:
     for line in lines:
         fields = line.split()  # "1: FLOCK  ADVISORY  WRITE 1234 08:01:5678 0 EOF"
         if len(fields) >= 6 and fields[1] == "FLOCK" and fields[5].rsplit(":", 1)[-1] == str(inode):
-            return f"process {fields[4]}{_command_line(fields[4])}"
+            return f"process {fields[4]}{_command_line(fields[4])}{_stopped(fields[4])}"
     return "another process"
+
+
+def _stopped(pid: str) -> str:
+    """``", which is stopped (...)"`` when process ``pid`` is stopped (SIGSTOP, Ctrl-Z: waiting for it to end would
+    wait forever), else ``""``."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return ""
+    if state not in ("T", "t"):
+        return ""
+    return f", which is stopped (SIGSTOP or Ctrl-Z): it will not end by itself; let it go on with kill -CONT {pid}, or end it"
 
 
 def _command_line(pid: str) -> str:

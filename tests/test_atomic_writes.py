@@ -324,3 +324,25 @@ def test_args_file_is_still_plain_yaml(tmp_path):
     assert yaml.safe_load((tmp_path / "args.yml").read_text()) == {"algo": "mappo", "seed": 3}
     assert yaml.safe_load((tmp_path / "config.yml").read_text()) == {"n_steps": 10}
     shutil.rmtree(tmp_path)
+
+
+def test_ctrl_c_right_after_the_temporary_file_is_made_leaves_nothing_behind(tmp_path, monkeypatch):
+    """A SIGINT between the temporary file's creation and the write used to leave a 0-byte hidden file beside the
+    target: the signal arrives here just as the file is made."""
+    from sb3_saeir.common import atomic
+
+    create_temp = atomic._create_temp
+
+    def create_then_interrupted(path):
+        temp = create_temp(path)
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C at the worst moment
+        return temp
+
+    monkeypatch.setattr(atomic, "_create_temp", create_then_interrupted)
+    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            atomic.atomic_write_text(tmp_path / "record.json", "{}")
+    finally:
+        signal.signal(signal.SIGINT, previous_handler)
+    assert list(tmp_path.iterdir()) == []

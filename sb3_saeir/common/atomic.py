@@ -18,7 +18,9 @@ import io
 import os
 import secrets
 import shutil
+import signal
 import stat
+import threading
 import warnings
 from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
@@ -73,6 +75,27 @@ def _fsync_path(path: Path, folder: bool = False) -> None:
 
 
 @contextlib.contextmanager
+def _stop_signals_deferred() -> Iterator[list[int]]:
+    """In the main thread, let SIGINT, SIGTERM and SIGHUP that arrive while the block runs only be noted (in the
+    yielded list), the handlers put back when it ends, so that the caller delivers them where it can clean up
+    (:func:`signal.raise_signal`). Elsewhere, or for a handler not set from Python, nothing is deferred."""
+    arrived: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield arrived
+        return
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        handler = signal.getsignal(signum)
+        if handler is not None:
+            previous[signum] = signal.signal(signum, lambda number, frame: arrived.append(number))
+    try:
+        yield arrived
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+@contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Replace ``path`` atomically: yields a temporary path in the same folder to write the new content to; when the
     block ends without an error, the temporary file is flushed to disk (``fsync``) and moved onto ``path``
@@ -90,14 +113,19 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     path = Path(path)
     if path.is_symlink():
         path = Path(os.path.realpath(path))
-    temp = _create_temp(path)
+    temp: Path | None = None
     try:
+        with _stop_signals_deferred() as arrived:  # a Ctrl-C right after the file is made left it behind, empty
+            temp = _create_temp(path)
+        for signum in arrived:  # delivered now, where the file is removed
+            signal.raise_signal(signum)
         yield temp
         _fsync_path(temp)
         os.replace(temp, path)
     except BaseException as error:
-        with contextlib.suppress(OSError):
-            temp.unlink()
+        if temp is not None:
+            with contextlib.suppress(OSError):
+                temp.unlink()
         if isinstance(error, OSError) and error.filename in (None, str(temp)):
             error.filename, error.filename2 = str(path), None  # named by the file being written
         raise

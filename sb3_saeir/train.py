@@ -162,7 +162,35 @@ def train(args: argparse.Namespace) -> Path:
     with RunFolderLock(folder) as lock:  # before anything is read for the run or written
         check_run_folder_writable(folder)
         stored = stored_record(folder, args.algo, args.task, legacy_train_record)
+        check_not_a_benchmark_run(folder, stored)
         return _execute(args, hyperparams, folder, resumed_seed(args.seed, stored, folder), stored, lock)
+
+
+def check_not_a_benchmark_run(folder: Path, stored: dict[str, Any]) -> None:
+    """Refuse ``--resume`` of a benchmark run's folder (``<out>/runs/<algo>/<task>_s<seed>``, whose record has no
+    ``train`` options) with the benchmark command that resumes it, instead of a list of ``train``'s defaults that
+    differ from its record.
+
+    :param folder: the folder ``--resume`` names
+    :param stored: its settings record
+    :raises ~sb3_saeir.config.ConfigError: naming the benchmark command
+    """
+    if "options" in stored or folder.parent.parent.name != "runs" or not folder.name.endswith(f"_s{stored.get('seed')}"):
+        return
+    command = [
+        "python -m sb3_saeir.benchmark", f"--algos {stored.get('algo')}", f"--tasks {stored.get('task')}",
+        f"--seeds {stored.get('seed')}", f"-n {stored.get('n_timesteps')}",
+    ]  # fmt: skip
+    if stored.get("n_games") is not None:
+        command.append(f"--n-games {stored['n_games']}")
+    command += [f"--eval-freq {stored.get('eval_freq')}", f"--eval-episodes {stored.get('eval_episodes')}"]
+    if stored.get("params"):
+        command.append("-params " + " ".join(f"'{key}:{value!r}'" for key, value in sorted(stored["params"].items())))
+    command.append(f"--out {folder.parent.parent.parent}")
+    raise ConfigError(
+        f"--resume: {folder} is a run of the benchmark, not of train; the benchmark resumes it with the command that "
+        f"made it: {' '.join(command)}"
+    )
 
 
 def _execute(

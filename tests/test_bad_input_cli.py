@@ -654,3 +654,19 @@ def test_seed_takes_the_number_forms_that_n_takes(tmp_path, capsys):
     with pytest.raises(SystemExit):
         train_main([*argv[:-4], "--seed", "1.5e0", "-f", str(tmp_path)])
     assert "'1.5e0' is not a whole number" in capsys.readouterr().err
+
+
+def test_train_resume_of_a_benchmark_run_names_the_benchmark_command(tmp_path, capsys):
+    """``train --resume <benchmark run folder>`` listed train's defaults as "other settings"."""
+    argv = ["--algos", "mappo", "--tasks", "cn-sparse-n3", "--seeds", "2", "-n", "60", "--n-games", "2"]
+    argv += ["--eval-freq", "60", "--eval-episodes", "2", "-params", "n_steps:10", "--out", str(tmp_path / "bench")]
+    assert benchmark_main(argv) == 0
+    folder = tmp_path / "bench" / "runs" / "mappo" / "cn-sparse-n3_s2"
+    before = snapshot(folder)
+    capsys.readouterr()
+    assert train_main(["--algo", "mappo", "--task", "cn-sparse-n3", "--resume", str(folder)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"{folder} is a run of the benchmark, not of train" in line
+    assert "python -m sb3_saeir.benchmark --algos mappo --tasks cn-sparse-n3 --seeds 2 -n 60 --n-games 2" in line
+    assert f"'n_steps:10' --out {tmp_path / 'bench'}" in line and "--eval-freq" in line
+    assert snapshot(folder) == before

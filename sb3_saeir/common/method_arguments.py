@@ -10,6 +10,13 @@ from typing import Any
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
+from sb3_saeir.common.checks import ParameterNamesError
+
+
+class ParameterShapesError(ParameterNamesError):
+    """Parameters of another shape than the model's (:func:`check_parameter_shapes`); as for names, ``load`` says
+    which of its arguments caused it (``custom_objects`` ``policy_kwargs`` of other sizes, or a damaged zip)."""
+
 
 def check_callback(owner: str, callback: Any) -> None:
     """Refuse a ``learn`` callback SB3 cannot use: it takes ``None``, a ``BaseCallback``, a callable ``(locals,
@@ -48,7 +55,7 @@ def check_parameter_shapes(owner: str, params: dict[str, Any], model: Any) -> No
     :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
     :param params: object name (``"policy"``, ...) -> state dict, as ``get_parameters`` returns them
     :param model: the model whose parameters are set
-    :raises ValueError: one line naming a few mismatched entries, their shapes and the fix
+    :raises ParameterShapesError: one line naming a few mismatched entries, their shapes and the fix
     """
     from stable_baselines3.common.save_util import recursive_getattr
 
@@ -66,7 +73,8 @@ def check_parameter_shapes(owner: str, params: dict[str, Any], model: Any) -> No
                 mismatched.append(f"{name}[{key!r}] {tuple(tensor.shape)} for {tuple(own[key].shape)}")
     if mismatched:
         shown = "; ".join(mismatched[:3]) + (f" and {len(mismatched) - 3} more" if len(mismatched) > 3 else "")
-        raise ValueError(
+        raise ParameterShapesError(
             f"{owner}: parameters of another shape than this model's: {shown}; nothing was set. Pass the parameters of "
-            "a model built with the same network settings (policy_kwargs) and env."
+            "a model built with the same network settings (policy_kwargs) and env.",
+            f"size mismatch: {shown}",
         )

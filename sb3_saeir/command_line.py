@@ -8,9 +8,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import signal
 import sys
-import threading
 import typing
 import warnings
 from collections.abc import Iterator
@@ -142,37 +140,6 @@ def one_line_warnings(prog: str) -> Iterator[None]:
         yield
     finally:
         warnings.showwarning = previous
-
-
-class StopSignal(KeyboardInterrupt):
-    """SIGTERM or SIGHUP received by a command that stops on it as on Ctrl-C (:func:`stop_signals_as_ctrl_c`).
-
-    :param signum: the signal
-    """
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-@contextlib.contextmanager
-def stop_signals_as_ctrl_c() -> Iterator[None]:
-    """In the main thread: SIGTERM (kill, timeout, container stops, batch schedulers) and SIGHUP (a closed terminal)
-    raise :class:`StopSignal`, a ``KeyboardInterrupt``, so that the command stops as on Ctrl-C
-    (``docs/guide/training.md``, "Signals"); the previous handlers are put back afterwards."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise StopSignal(signum)
-
-    previous = {signum: signal.signal(signum, handler) for signum in (signal.SIGTERM, signal.SIGHUP)}
-    try:
-        yield
-    finally:
-        for signum, previous_handler in previous.items():
-            signal.signal(signum, previous_handler)
 
 
 def resume_target(text: str) -> int | Path:

@@ -16,7 +16,6 @@ import signal
 import sys
 import threading
 import time
-import warnings
 import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager, suppress
@@ -51,7 +50,7 @@ from sb3_saeir.common.run_state import (
     progress_logger,
     save_checkpoint,
 )
-from sb3_saeir.common.utils import PACKAGE_VERSION
+from sb3_saeir.common.stop_signals import STOP_SIGNALS, signal_name
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
 from sb3_saeir.evaluation import MultiAgentEvalCallback
@@ -73,6 +72,7 @@ from sb3_saeir.run_record import (
     spec_differences,
     spec_record,
     split_rows,
+    warn_other_version,
     write_done_file,
     write_rows,
     write_spec_file,
@@ -179,29 +179,6 @@ class RunEvalCallback(MultiAgentEvalCallback):
 
 # ---------------------------------------------------------------------------------------------------- the run
 # ---------------------------------------------------------------------------------------------------- the run
-
-# The signals on which a command line's run writes a checkpoint and stops, as on Ctrl-C (docs/guide/training.md,
-# "Signals"): a terminal's Ctrl-C (SIGINT), what kill, timeout, container stops and batch schedulers send first
-# (SIGTERM), and a closed terminal (SIGHUP). The command then exits with 128 + the signal's number.
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
-def signal_name(signum: int) -> str:
-    """How a stop signal is named to the user: ``Ctrl-C`` for SIGINT, else its name (``SIGTERM``, ``SIGHUP``)."""
-    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-
-
-# The exit status of a command line's run stopped early by Ctrl-C (as shells give a command ended by SIGINT: 128 + 2).
-INTERRUPTED_EXIT_STATUS = 130
-
-
-def interrupted_exit_status(signum: int | None) -> int:
-    """The exit status of a command line's run stopped early by a signal: 128 + its number, as shells give (130 for
-    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP).
-
-    :param signum: the signal (``None``: Ctrl-C)
-    """
-    return INTERRUPTED_EXIT_STATUS if signum is None else 128 + int(signum)
 
 
 @dataclass
@@ -390,14 +367,7 @@ class Run:
             )
         self.stored = stored
         self.extended_from = extended_budget(stored, self.spec.n_timesteps)
-        other_version = stored.get("version")
-        if isinstance(other_version, str) and other_version != PACKAGE_VERSION:
-            warnings.warn(
-                f"the run in {self.folder} was recorded by sb3-saeir {other_version} and goes on with {PACKAGE_VERSION}: "
-                "segments.json records the version of each segment.",
-                UserWarning,
-                stacklevel=2,
-            )
+        warn_other_version(self.folder, stored)
 
     def check_resumable(self, stored: dict[str, Any]) -> None:
         """Find where ``--resume`` continues the run (:meth:`open`: its newest checkpoint that loads, or its final

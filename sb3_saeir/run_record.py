@@ -10,6 +10,7 @@ import csv
 import io
 import json
 import os
+import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -31,7 +32,7 @@ from sb3_saeir.common.run_files import (
     SPEC_FILE,
 )
 from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, read_zip_data, utc_stamp
-from sb3_saeir.common.utils import unwritable_folder
+from sb3_saeir.common.utils import PACKAGE_VERSION, unwritable_folder
 from sb3_saeir.config import ConfigError, load_hyperparams
 from sb3_saeir.experiment import numbered_paths
 
@@ -125,6 +126,23 @@ def spec_record(spec: RunSpec) -> dict[str, Any]:
 
 def _show(value: Any) -> str:
     return "(unset)" if value is None else json.dumps(value, sort_keys=True)
+
+
+def warn_other_version(folder: Path, stored: dict[str, Any]) -> None:
+    """Warn in one line that the run in ``folder`` goes on with another sb3-saeir version than the one its record
+    ``stored`` names (``segments.json`` records the version of each segment).
+
+    :param folder: the run's folder
+    :param stored: its settings record
+    """
+    other_version = stored.get("version")
+    if isinstance(other_version, str) and other_version != PACKAGE_VERSION:
+        warnings.warn(
+            f"the run in {folder} was recorded by sb3-saeir {other_version} and goes on with {PACKAGE_VERSION}: "
+            "segments.json records the version of each segment.",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: tuple[str, ...] = ()) -> list[str]:

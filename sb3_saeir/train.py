@@ -35,6 +35,7 @@ from sb3_saeir.command_line import (
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
+from sb3_saeir.common.stop_signals import INTERRUPTED_EXIT_STATUS, interrupted_exit_status, signal_name
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.config import ALGOS, ConfigError, parse_params
 from sb3_saeir.envs import list_tasks
@@ -46,7 +47,7 @@ from sb3_saeir.experiment import (
     loaded_network,
     model_method_mismatch,
 )
-from sb3_saeir.run import INTERRUPTED_EXIT_STATUS, Run, RunOutput, RunStoppedError, interrupted_exit_status, signal_name
+from sb3_saeir.run import Run, RunOutput, RunStoppedError
 from sb3_saeir.run_record import RunSpec, check_run_folder_writable, config_record, stored_record
 
 __all__ = [

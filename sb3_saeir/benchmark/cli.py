@@ -13,13 +13,13 @@ from typing import Any
 from sb3_saeir.benchmark.execution import RERUN_COPY, is_finished, run_all
 from sb3_saeir.benchmark.reports import plot_system_entropy, report
 from sb3_saeir.benchmark.runs import ensure_spec_file, move_aside, parse_seeds, run_folder, stored_spec_differences
-from sb3_saeir.command_line import OneLineParser, StopSignal, budget, check_folder, count, stop_signals_as_ctrl_c
+from sb3_saeir.command_line import OneLineParser, budget, check_folder, count
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
+from sb3_saeir.common.stop_signals import StopSignal, interrupted_exit_status, stop_signals_as_ctrl_c
 from sb3_saeir.config import ALGOS, DEFAULT_N_GAMES, ConfigError, check_hyperparams, load_hyperparams, parse_params
-from sb3_saeir.run import interrupted_exit_status
 from sb3_saeir.run_record import RunSpec, check_run_folder_writable, read_spec_file, spec_record
 
 # The line Ctrl-C ends with (exit status 130).

@@ -19,10 +19,10 @@ from sb3_saeir.command_line import check_folder, check_seed_option, one_line_war
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import SPEC_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
+from sb3_saeir.common.stop_signals import interrupted_exit_status
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
 from sb3_saeir.experiment import find_run_folder
-from sb3_saeir.run import interrupted_exit_status
 from sb3_saeir.run_record import check_run_folder_writable, read_spec_file
 from sb3_saeir.zoo.registration import (
     WRAPPER_NAME,

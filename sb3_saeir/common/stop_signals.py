@@ -1,0 +1,67 @@
+"""How a command line stops on a signal (``docs/guide/training.md``, "Signals"): Ctrl-C (SIGINT), SIGTERM and SIGHUP
+stop ``train``, ``zoo train`` and the benchmark at a checkpoint, and the command exits with 128 + the signal's number.
+:class:`~sb3_saeir.run.Run` handles them during training; :func:`stop_signals_as_ctrl_c` makes SIGTERM and SIGHUP a
+``KeyboardInterrupt`` for a command that stops on Ctrl-C (the benchmark driver).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+# The signals on which a command line's run writes a checkpoint and stops, as on Ctrl-C (docs/guide/training.md,
+# "Signals"): a terminal's Ctrl-C (SIGINT), what kill, timeout, container stops and batch schedulers send first
+# (SIGTERM), and a closed terminal (SIGHUP). The command then exits with 128 + the signal's number.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def signal_name(signum: int) -> str:
+    """How a stop signal is named to the user: ``Ctrl-C`` for SIGINT, else its name (``SIGTERM``, ``SIGHUP``)."""
+    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+
+
+# The exit status of a command line's run stopped early by Ctrl-C (as shells give a command ended by SIGINT: 128 + 2).
+INTERRUPTED_EXIT_STATUS = 130
+
+
+def interrupted_exit_status(signum: int | None) -> int:
+    """The exit status of a command line's run stopped early by a signal: 128 + its number, as shells give (130 for
+    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP).
+
+    :param signum: the signal (``None``: Ctrl-C)
+    """
+    return INTERRUPTED_EXIT_STATUS if signum is None else 128 + int(signum)
+
+
+class StopSignal(KeyboardInterrupt):
+    """SIGTERM or SIGHUP received by a command that stops on it as on Ctrl-C (:func:`stop_signals_as_ctrl_c`).
+
+    :param signum: the signal
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def stop_signals_as_ctrl_c() -> Iterator[None]:
+    """In the main thread: SIGTERM (kill, timeout, container stops, batch schedulers) and SIGHUP (a closed terminal)
+    raise :class:`StopSignal`, a ``KeyboardInterrupt``, so that the command stops as on Ctrl-C
+    (``docs/guide/training.md``, "Signals"); the previous handlers are put back afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise StopSignal(signum)
+
+    previous = {signum: signal.signal(signum, handler) for signum in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for signum, previous_handler in previous.items():
+            signal.signal(signum, previous_handler)

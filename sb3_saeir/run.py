@@ -12,9 +12,7 @@ from __future__ import annotations
 import errno
 import inspect
 import shutil
-import signal
 import sys
-import threading
 import time
 import zipfile
 from collections.abc import Callable, Iterator
@@ -50,7 +48,7 @@ from sb3_saeir.common.run_state import (
     progress_logger,
     save_checkpoint,
 )
-from sb3_saeir.common.stop_signals import STOP_SIGNALS, signal_name
+from sb3_saeir.common.stop_signals import STOP_SIGNALS, handlers_installed, signal_name
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
 from sb3_saeir.evaluation import MultiAgentEvalCallback
@@ -633,7 +631,7 @@ class Run:
         """For a command line's run, in the main thread: the first of :data:`STOP_SIGNALS` (Ctrl-C, ``kill``'s
         SIGTERM, a closed terminal's SIGHUP) asks for a checkpoint at the next rollout start and a stop there; a
         second stops at once (``KeyboardInterrupt``)."""
-        if not self.output.command_line or threading.current_thread() is not threading.main_thread():
+        if not self.output.command_line:
             yield
             return
 
@@ -644,12 +642,8 @@ class Run:
             name = signal_name(signum)
             print(f"\n{name}: writing a checkpoint after this rollout and update, then stopping ({name} again: stop now)")
 
-        previous = {signum: signal.signal(signum, handler) for signum in STOP_SIGNALS}
-        try:
+        with handlers_installed(STOP_SIGNALS, handler):
             yield
-        finally:
-            for signum, previous_handler in previous.items():
-                signal.signal(signum, previous_handler)
 
     def _finish(self, end_state: dict[str, Any] | None) -> Path:
         """Save ``<task>.zip`` (with ``end_state``, the resume state of its last step, when there is one); when the

@@ -41,7 +41,12 @@ def checkpoints(folder):
 
 
 def start_and_stop(algo, log_folder, stop_signal, n_checkpoints):
-    """Start a training run; send ``stop_signal`` to it once ``n_checkpoints`` checkpoints exist."""
+    """Start a training run; send ``stop_signal`` to it once ``n_checkpoints`` checkpoints exist; its stdout."""
+    return start_and_signal(algo, log_folder, stop_signal, n_checkpoints)[1]
+
+
+def start_and_signal(algo, log_folder, stop_signal, n_checkpoints=1):
+    """:func:`start_and_stop`, returning the run's exit status, stdout and stderr."""
     folder = run_folder(log_folder, algo)
     process = subprocess.Popen(
         command(algo, log_folder), env=child_env(), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
@@ -52,8 +57,8 @@ def start_and_stop(algo, log_folder, stop_signal, n_checkpoints):
         assert time.time() < deadline
         time.sleep(0.005)
     os.kill(process.pid, stop_signal)
-    stdout, _ = process.communicate(timeout=TIMEOUT)
-    return stdout.decode()
+    stdout, stderr = process.communicate(timeout=TIMEOUT)
+    return process.returncode, stdout.decode(), stderr.decode()
 
 
 def resume(algo, log_folder, *extra):
@@ -170,17 +175,9 @@ def test_a_seed_other_than_the_runs_is_refused_and_no_seed_takes_the_runs(finish
 def test_a_run_stopped_by_ctrl_c_exits_with_130(tmp_path):
     """A script can tell a run stopped early from a finished one: 130, as shells give a command ended by SIGINT."""
     folder = run_folder(tmp_path, "mappo")
-    process = subprocess.Popen(
-        command("mappo", tmp_path), env=child_env(), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
-    )
-    deadline = time.time() + TIMEOUT
-    while not checkpoints(folder):
-        assert process.poll() is None and time.time() < deadline
-        time.sleep(0.005)
-    os.kill(process.pid, signal.SIGINT)
-    stdout, _ = process.communicate(timeout=TIMEOUT)
-    assert process.returncode == 130
-    assert "Stopped at the checkpoint" in stdout.decode() and not (folder / "done.json").exists()
+    status, stdout, _ = start_and_signal("mappo", tmp_path, signal.SIGINT)
+    assert status == 130
+    assert "Stopped at the checkpoint" in stdout and not (folder / "done.json").exists()
 
 
 @pytest.mark.parametrize(("stop_signal", "status"), [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
@@ -188,20 +185,12 @@ def test_sigterm_and_sighup_stop_at_a_checkpoint_as_ctrl_c_does(reference, tmp_p
     """kill, timeout, container stops and batch schedulers send SIGTERM first, a closed terminal SIGHUP: the run writes
     a checkpoint, says so in one line, exits with 128 + the signal, and --resume ends it as the uninterrupted run."""
     folder = run_folder(tmp_path, "mappo")
-    process = subprocess.Popen(
-        command("mappo", tmp_path), env=child_env(), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
-    )
-    deadline = time.time() + TIMEOUT
-    while not checkpoints(folder):
-        assert process.poll() is None and time.time() < deadline
-        time.sleep(0.005)
-    os.kill(process.pid, stop_signal)
-    stdout, stderr = process.communicate(timeout=TIMEOUT)
+    returncode, stdout, stderr = start_and_signal("mappo", tmp_path, stop_signal)
     name = signal.Signals(stop_signal).name
-    assert process.returncode == status, stderr.decode()[-2000:]
-    assert f"{name}: writing a checkpoint" in stdout.decode() and "Stopped at the checkpoint" in stdout.decode()
+    assert returncode == status, stderr[-2000:]
+    assert f"{name}: writing a checkpoint" in stdout and "Stopped at the checkpoint" in stdout
     stopped_at = checkpoints(folder)[-1]
-    assert stopped_at.name in stdout.decode().split("Stopped at the checkpoint")[1]
+    assert stopped_at.name in stdout.split("Stopped at the checkpoint")[1]
     assert not (folder / "done.json").exists()
     resumed = resume("mappo", tmp_path)
     assert resumed.returncode == 0, resumed.stderr

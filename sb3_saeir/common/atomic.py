@@ -20,13 +20,13 @@ import secrets
 import shutil
 import signal
 import stat
-import threading
 import warnings
 from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import IO, Any, cast
 
+from sb3_saeir.common.stop_signals import STOP_SIGNALS, handlers_installed
 from sb3_saeir.common.utils import user_stacklevel
 
 # Modes of atomic_file.
@@ -76,23 +76,13 @@ def _fsync_path(path: Path, folder: bool = False) -> None:
 
 @contextlib.contextmanager
 def _stop_signals_deferred() -> Iterator[list[int]]:
-    """In the main thread, let SIGINT, SIGTERM and SIGHUP that arrive while the block runs only be noted (in the
-    yielded list), the handlers put back when it ends, so that the caller delivers them where it can clean up
-    (:func:`signal.raise_signal`). Elsewhere, or for a handler not set from Python, nothing is deferred."""
+    """In the main thread, let the stop signals (SIGINT, SIGTERM, SIGHUP) that arrive while the block runs only be
+    noted (in the yielded list), the handlers put back when it ends, so that the caller delivers them where it can
+    clean up (:func:`signal.raise_signal`). Elsewhere, or for a handler not set from Python, nothing is deferred."""
     arrived: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
+    python_handled = [signum for signum in STOP_SIGNALS if signal.getsignal(signum) is not None]
+    with handlers_installed(python_handled, lambda signum, frame: arrived.append(signum)):
         yield arrived
-        return
-    previous = {}
-    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        handler = signal.getsignal(signum)
-        if handler is not None:
-            previous[signum] = signal.signal(signum, lambda number, frame: arrived.append(number))
-    try:
-        yield arrived
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 @contextlib.contextmanager

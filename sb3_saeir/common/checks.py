@@ -396,11 +396,13 @@ def check_tensorboard_log(algo_name: str, tensorboard_log: Any) -> None:
 def check_save_path(algo_name: str, path: Any) -> None:
     """Refuse a ``save`` path where no file can be written, before anything is written: an empty name, a folder (SB3
     saved to ``<path>_2`` instead), a path under a file, or in a folder that is not writable (SB3 would recurse without
-    end under ``/proc``, or fail with the OS's message). A file object passes (SB3 writes to it).
+    end under ``/proc``, or fail with the OS's message), or ``None``. A file object passes (SB3 writes to it).
 
     :param algo_name: class name for the message
     :param path: the ``path`` argument of ``save``
     """
+    if path is None:
+        raise TypeError(f"{algo_name}.save: path=None; pass a file path (such as 'model.zip') or a binary file object.")
     if not isinstance(path, (str, os.PathLike)):
         return
     if str(path) in ("", "."):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 # The signals on which a command line's run writes a checkpoint and stops, as on Ctrl-C (docs/guide/training.md,
@@ -48,20 +48,32 @@ class StopSignal(KeyboardInterrupt):
 
 
 @contextlib.contextmanager
-def stop_signals_as_ctrl_c() -> Iterator[None]:
-    """In the main thread: SIGTERM (kill, timeout, container stops, batch schedulers) and SIGHUP (a closed terminal)
-    raise :class:`StopSignal`, a ``KeyboardInterrupt``, so that the command stops as on Ctrl-C
-    (``docs/guide/training.md``, "Signals"); the previous handlers are put back afterwards."""
+def handlers_installed(signums: Iterable[int], handler: Callable[[int, Any], None]) -> Iterator[None]:
+    """In the main thread (the only one where Python sets signal handlers): ``handler`` handles ``signums`` while the
+    block runs, and the previous handlers are put back when it ends. Elsewhere nothing is installed.
+
+    :param signums: the signals
+    :param handler: ``handler(signum, frame)``
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise StopSignal(signum)
-
-    previous = {signum: signal.signal(signum, handler) for signum in (signal.SIGTERM, signal.SIGHUP)}
+    previous = {signum: signal.signal(signum, handler) for signum in signums}
     try:
         yield
     finally:
         for signum, previous_handler in previous.items():
             signal.signal(signum, previous_handler)
+
+
+@contextlib.contextmanager
+def stop_signals_as_ctrl_c() -> Iterator[None]:
+    """In the main thread: SIGTERM (kill, timeout, container stops, batch schedulers) and SIGHUP (a closed terminal)
+    raise :class:`StopSignal`, a ``KeyboardInterrupt``, so that the command stops as on Ctrl-C
+    (``docs/guide/training.md``, "Signals"); the previous handlers are put back afterwards."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise StopSignal(signum)
+
+    with handlers_installed((signal.SIGTERM, signal.SIGHUP), handler):
+        yield

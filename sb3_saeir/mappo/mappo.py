@@ -603,10 +603,6 @@ class MAPPO(OnPolicyAlgorithm):
         :param exclude: name of parameters that should be excluded in addition to the default ones
         :param include: name of parameters that might be excluded but should be included anyway
         """
-        if path is None:
-            raise TypeError(
-                f"{type(self).__name__}.save: path=None; pass a file path (such as 'model.zip') or a binary file object."
-            )
         checks.check_save_path(type(self).__name__, path)
         self.sb3_saeir_version = PACKAGE_VERSION  # saved with the model's data; load names another version
         if isinstance(path, (str, os.PathLike)):

@@ -128,16 +128,15 @@ class CheckedParallelEnv(BaseParallelWrapper):
         for name, part in zip(parts, returned):
             if not isinstance(part, dict):
                 raise GameFaultError(
-                    f"{self._where()}: {call} returned {name} = {_describe(part)}; PettingZoo's parallel API returns "
-                    f"{shape} ({{}} for an agent with no {name[:-1] if name == 'infos' else name})."
+                    f"{self._where()}: {call} returned {name} = {_describe(part)}; PettingZoo's parallel API returns {shape}."
                 )
-        infos = returned[-1]
-        missing = [agent for agent in self._agent_names if agent not in infos]
-        if missing and call == "step":
-            raise GameFaultError(
-                f"{self._where(missing[0])}: no info; {call} must return an info dict for every agent of "
-                "possible_agents ({} when there is nothing to say)."
-            )
+        if call == "step":  # SuperSuit reads every agent's info after a step (a raw KeyError)
+            missing = next((agent for agent in self._agent_names if agent not in returned[-1]), None)
+            if missing is not None:
+                raise GameFaultError(
+                    f"{self._where(missing)}: no info; step must return an info dict for every agent of possible_agents "
+                    "({} when there is nothing to say)."
+                )
         return returned
 
     def _game_name(self) -> str:

@@ -310,6 +310,25 @@ def parse_policy_kwargs(policy_kwargs: Any) -> dict[str, Any]:
     return dict(policy_kwargs)
 
 
+def algorithm_kwargs(params: dict[str, Any], n_games: int, env: VecEnv) -> dict[str, Any]:
+    """A config entry's arguments of the algorithm class (every key but :data:`CONFIG_KEYS`), for a model on ``env``
+    with ``n_games`` games: ``intrinsic_kwargs`` parsed, and a ``batch_size`` that is the config's whole rollout kept
+    the whole rollout with ``n_games`` games.
+
+    :param params: the config entry
+    :param n_games: the games of the model's env
+    :param env: the model's multi-agent vec env (``n_games`` games)
+    """
+    kwargs = {key: value for key, value in params.items() if key not in CONFIG_KEYS}
+    if "intrinsic_kwargs" in kwargs:
+        kwargs["intrinsic_kwargs"] = parse_policy_kwargs(kwargs["intrinsic_kwargs"])
+    config_games = params.get("n_envs", n_games)
+    n_agents = env.num_envs // n_games
+    if "batch_size" in kwargs and kwargs["batch_size"] == params.get("n_steps", 0) * config_games * n_agents:
+        kwargs["batch_size"] = params["n_steps"] * env.num_envs  # the whole rollout with this game count
+    return kwargs
+
+
 def build_model(
     algo: str,
     task: str,
@@ -338,14 +357,8 @@ def build_model(
         num_cpus = int(params.get("num_cpus", 0))
         env_kwargs = parse_policy_kwargs(params.get("env_kwargs"))
         env = make_multiagent_vec_env(task, n_games=games, seed=seed, num_cpus=num_cpus, **env_kwargs)
-    algo_kwargs = {key: value for key, value in params.items() if key not in CONFIG_KEYS}
-    if "intrinsic_kwargs" in algo_kwargs:
-        algo_kwargs["intrinsic_kwargs"] = parse_policy_kwargs(algo_kwargs["intrinsic_kwargs"])
-    config_games = params.get("n_envs", games)
-    n_agents = env.num_envs // games
-    if "batch_size" in algo_kwargs and algo_kwargs["batch_size"] == params.get("n_steps", 0) * config_games * n_agents:
-        # the config's batch is its whole rollout: keep it the whole rollout with the game count used here
-        algo_kwargs["batch_size"] = params["n_steps"] * env.num_envs
+    algo_kwargs = algorithm_kwargs(params, games, env)
+    if "batch_size" in algo_kwargs:
         resolved["batch_size"] = algo_kwargs["batch_size"]
     algo_kwargs.update(model_kwargs)
     policy = params.get("policy", "MlpPolicy")

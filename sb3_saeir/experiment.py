@@ -28,6 +28,7 @@ from sb3_saeir.config import (
     ALGOS,
     DEFAULT_N_GAMES,
     ConfigError,
+    algorithm_kwargs,
     build_callbacks,
     build_model,
     load_hyperparams,
@@ -35,6 +36,8 @@ from sb3_saeir.config import (
 )
 from sb3_saeir.envs import get_task_spec
 
+# Policy keywords that the algorithm sets itself (from the env and its own ``normalize_values``), not a config.
+ALGORITHM_POLICY_KWARGS = ("n_agents", "normalize_values")
 # Seed offset of evaluation envs: evaluation games never replay the training games' seeds.
 EVAL_SEED_OFFSET = 10_000
 
@@ -146,27 +149,47 @@ class Experiment:
         return self.model
 
     def load(
-        self, path: str | Path, env: VecEnv | None = None, device: str = "cpu", tensorboard_log: str | None = None
+        self,
+        path: str | Path,
+        env: VecEnv | None = None,
+        device: str = "cpu",
+        tensorboard_log: str | None = None,
+        verbose: int | None = None,
     ) -> BaseAlgorithm:
         """Load a saved model of this method onto the training env (``env``, else the one built before, else a new
-        one from :meth:`make_env`), to continue training it.
-
-        The config's ``compile`` (not saved with a model: a setting of the machine) applies to the loaded model.
+        one from :meth:`make_env`), to continue training it with the config's hyperparameters, as rl-zoo3's ``-i``
+        does: every algorithm argument of the config (``learning_rate``, ``n_steps``, ``n_epochs``, ``compile``, ...)
+        and the experiment's seed apply to the loaded model; its network is the one it was saved with (``policy`` and
+        ``policy_kwargs`` do not apply: :func:`loaded_network`). A setting that cannot apply to the saved model is
+        refused by the algorithm's ``load``.
 
         :param path: the model zip
         :param env: use this multi-agent vec env as the training env
         :param device: torch device
-        :param tensorboard_log: tensorboard log folder
+        :param tensorboard_log: tensorboard log folder (default: the config's, else the saved model's)
+        :param verbose: verbosity (default: the config's, else the saved model's)
         """
+        self._use_env(env)
+        assert self.env is not None
+        settings = algorithm_kwargs(self.hyperparams, self.n_games, self.env)
+        settings["seed"] = self.seed
+        for name, value in (("tensorboard_log", tensorboard_log), ("verbose", verbose)):
+            if value is not None:
+                settings[name] = value
+        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, **settings)
+        self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
+        if "batch_size" in settings:
+            self.resolved_hyperparams["batch_size"] = settings["batch_size"]
+        return self.model
+
+    def _use_env(self, env: VecEnv | None) -> None:
+        """Take ``env`` as the training env (else keep the one built before, else make one) and the config's
+        callbacks, for a model loaded onto it."""
         if env is not None:
             self.env = env
         elif self.env is None:
             self.env = self.make_env()
         self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
-        settings = {"compile": self.hyperparams["compile"]} if "compile" in self.hyperparams else {}
-        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, tensorboard_log=tensorboard_log, **settings)
-        self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
-        return self.model
 
     def attach(self, model: BaseAlgorithm) -> BaseAlgorithm:
         """Take a model built elsewhere (by rl-zoo3's ``ExperimentManager``) as this experiment's, its env as the
@@ -178,7 +201,8 @@ class Experiment:
         return model
 
     def resume(self, checkpoint: str | Path, device: str = "cpu", tensorboard_log: str | None = None) -> dict[str, Any] | None:
-        """Load a checkpoint's model onto the training env (:meth:`load`) and return its resume state, for a
+        """Load a checkpoint's model onto the training env, with the settings it was saved with (only the config's
+        ``compile``, a setting of the machine, applies), and return its resume state, for a
         :class:`~sb3_saeir.common.run_state.RunCheckpointCallback` to restore at the first rollout (``None``: the zip
         is a plain model, with no resume state).
 
@@ -186,7 +210,13 @@ class Experiment:
         :param device: torch device
         :param tensorboard_log: tensorboard log folder
         """
-        self.load(checkpoint, device=device, tensorboard_log=tensorboard_log)
+        self._use_env(None)
+        # the checkpoint's own settings; the config's compile (a setting of the machine, not saved) applies
+        settings = {"compile": self.hyperparams["compile"]} if "compile" in self.hyperparams else {}
+        self.model = ALGOS[self.algo].load(
+            checkpoint, env=self.env, device=device, tensorboard_log=tensorboard_log, **settings
+        )
+        self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
         return load_resume_state(Path(checkpoint))
 
     def learn(
@@ -428,7 +458,13 @@ def loaded_network(model: BaseAlgorithm, path: str | Path, requested: Any, confi
     :param configured: the config entry's ``policy_kwargs``
     :raises ~sb3_saeir.config.ConfigError: naming the settings that cannot apply
     """
-    saved = dict(getattr(model, "policy_kwargs", {}) or {})
+    in_config = parse_policy_kwargs(configured)
+    asked = parse_policy_kwargs(requested) if requested is not None else {}
+    saved = {
+        key: value
+        for key, value in (getattr(model, "policy_kwargs", {}) or {}).items()
+        if key not in ALGORITHM_POLICY_KWARGS or key in in_config or key in asked
+    }  # as a config writes them: without what the algorithm sets itself
     defaults = {
         name: parameter.default
         for name, parameter in inspect.signature(type(model.policy).__init__).parameters.items()
@@ -439,7 +475,6 @@ def loaded_network(model: BaseAlgorithm, path: str | Path, requested: Any, confi
         """The keys of ``keys`` whose value (a policy default where not given) differs from the loaded network's."""
         return [key for key in sorted(keys) if kwargs.get(key, defaults.get(key)) != saved.get(key, defaults.get(key))]
 
-    asked = parse_policy_kwargs(requested) if requested is not None else {}
     keys = differing(asked, set(asked))
     if keys:
         wanted = ", ".join(f"{key}={kwarg_text(asked[key])}" for key in keys)
@@ -449,7 +484,6 @@ def loaded_network(model: BaseAlgorithm, path: str | Path, requested: Any, confi
             "loaded model trains the network it was saved with. Drop the policy_kwargs override, or start a new run "
             "without -i."
         )
-    in_config = parse_policy_kwargs(configured)
     if differing(in_config, set(in_config) | set(saved)):
         return "dict(" + ", ".join(f"{key}={kwarg_text(value)}" for key, value in sorted(saved.items())) + ")"
     return None

@@ -10,20 +10,16 @@ The files of a run folder: ``docs/guide/training.md``, "The run folder"; what th
 from __future__ import annotations
 
 import errno
-import inspect
 import shutil
-import sys
+import signal
 import time
 import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager, suppress
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.logger import KVWriter
-from stable_baselines3.common.utils import configure_logger
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.run_files import (
@@ -51,8 +47,8 @@ from sb3_saeir.common.run_state import (
 from sb3_saeir.common.stop_signals import STOP_SIGNALS, handlers_installed, signal_name
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
-from sb3_saeir.evaluation import MultiAgentEvalCallback
 from sb3_saeir.experiment import Experiment, evaluation_seed
+from sb3_saeir.run_output import RunEvalCallback, RunOutput
 from sb3_saeir.run_record import (
     ResumePoint,
     RunLog,
@@ -64,7 +60,6 @@ from sb3_saeir.run_record import (
     keep_damaged_checkpoints,
     newest_loading_checkpoint,
     read_done_file,
-    same_row,
     save_run_config,
     saved_timesteps,
     spec_differences,
@@ -72,7 +67,6 @@ from sb3_saeir.run_record import (
     split_rows,
     warn_other_version,
     write_done_file,
-    write_rows,
     write_spec_file,
 )
 
@@ -83,131 +77,6 @@ NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 class RunStoppedError(RuntimeError):
     """Training stopped by the system (a full disk): the message names the run's folder and the checkpoint to resume
     from."""
-
-
-# ---------------------------------------------------------------------------------------------------- evaluation
-class RunEvalCallback(MultiAgentEvalCallback):
-    """A run's evaluations: at the first agent-step count >= k * ``eval_freq`` (on the grid whether or not the run was
-    resumed), each on the same episodes (the eval env is reseeded with ``eval_seed`` first); each becomes a row of
-    ``evaluations.csv``, and ``evaluations.npz`` and ``best_model.zip`` are kept as SB3's ``EvalCallback`` keeps them.
-
-    :param eval_env: the evaluation env
-    :param spec: the run
-    :param folder: the run's folder
-    :param rows: evaluation rows already recorded (kept on resume)
-    :param n_agents: agents per game (``env_steps = agent-steps / n_agents``)
-    :param main_metric: the task's main metric
-    :param eval_seed: seed given to the eval env before every evaluation
-    :param lost_rows: rows made after the checkpoint by an interrupted segment, by agent-steps: they are re-done
-    :param clock: the run's wall-time record
-    :param log: the run's log
-    :param verbose: print each evaluation's main metric
-    """
-
-    def __init__(
-        self,
-        eval_env: Any,
-        spec: RunSpec,
-        folder: Path,
-        rows: list[dict[str, Any]],
-        n_agents: int,
-        main_metric: str,
-        eval_seed: int,
-        lost_rows: dict[int, dict[str, Any]],
-        clock: SegmentClock,
-        log: Callable[[str], None],
-        verbose: int = 0,
-    ) -> None:
-        super().__init__(
-            eval_env,
-            spec.eval_episodes,
-            spec.eval_freq,
-            main_metric=main_metric,
-            log_path=str(folder),
-            best_model_save_path=str(folder),
-            verbose=verbose,
-        )
-        self.spec = spec
-        self.evaluations_path = folder / EVALUATIONS_FILE
-        self.rows = rows
-        self.n_agents = n_agents
-        self.eval_seed = eval_seed
-        self.lost_rows = dict(lost_rows)
-        self.clock = clock
-        self.log = log
-        self.last_eval_timestep = int(rows[-1]["timesteps"]) if rows else 0
-        self.next_eval = self.grid_after(self.last_eval_timestep) if rows else 0
-
-    def grid_after(self, steps: int) -> int:
-        """The first multiple of ``eval_freq`` after ``steps`` agent-steps."""
-        return (steps // self.eval_freq + 1) * self.eval_freq if self.eval_freq > 0 else sys.maxsize
-
-    def _on_step(self) -> bool:
-        if self.num_timesteps >= self.next_eval:
-            self.last_eval_timestep = self.num_timesteps
-            return self.evaluate()
-        return True
-
-    def evaluate(self) -> bool:
-        self.num_timesteps = self.model.num_timesteps
-        self.eval_env.seed(self.eval_seed)  # every evaluation plays the same episodes
-        keep_going = super().evaluate()
-        spec = self.spec
-        row: dict[str, Any] = {"algo": spec.algo, "task": spec.task, "seed": spec.seed, "timesteps": self.num_timesteps}
-        row["env_steps"] = self.num_timesteps // self.n_agents
-        row.update({key: value for key, value in self.last_summary.items() if not key.endswith("_std")})
-        row.update({key: value for key, value in self.last_summary.items() if key.endswith("_std")})
-        self.next_eval = self.grid_after(self.num_timesteps)
-        lost = self.lost_rows.pop(self.num_timesteps, None)
-        if lost is not None:
-            outcome = "identical to" if same_row(row, lost) else "different from"
-            self.log(f"evaluation at {self.num_timesteps} agent-steps re-done: {outcome} the interrupted segment's")
-        self.rows.append(row)
-        write_rows(self.evaluations_path, self.rows)
-        self.clock.tick(self.num_timesteps)
-        return keep_going
-
-    def get_resume_state(self) -> dict[str, Any]:
-        return {**super().get_resume_state(), "next_eval": self.next_eval}
-
-    def set_resume_state(self, state: dict[str, Any]) -> None:
-        super().set_resume_state(state)
-        self.next_eval = int(state.get("next_eval", self.grid_after(self.last_eval_timestep)))
-
-
-# ---------------------------------------------------------------------------------------------------- the run
-# ---------------------------------------------------------------------------------------------------- the run
-
-
-@dataclass
-class RunOutput:
-    """How a run shows itself while it trains (default: quietly, as the benchmark's runs).
-
-    :param command_line: a command line's run: SB3's stdout (``verbose`` >= 1) and tensorboard (the model's
-        ``tensorboard_log``) writers besides ``progress.csv``, the latter going on in the latest ``<tb_log_name>_<N>``
-        folder when the run or its model goes on (as SB3's ``reset_num_timesteps=False`` does); and the first Ctrl-C
-        writes a checkpoint and stops cleanly (main thread only)
-    :param verbose: the verbosity (>= 1: each evaluation printed too)
-    :param progress_bar: SB3's progress bar
-    :param callbacks: more callbacks of the caller (an ETA line, ...)
-    """
-
-    command_line: bool = False
-    verbose: int = 0
-    progress_bar: bool = False
-    callbacks: list[BaseCallback] = field(default_factory=list)
-
-    def writers(self, model: Any, continued: bool) -> list[KVWriter]:
-        """The logger's writers besides ``progress.csv`` (none but for a command line's run).
-
-        :param model: the run's model
-        :param continued: the run or its model goes on (``--resume``, ``-i``)
-        """
-        if not self.command_line:
-            return []
-        tb_log_name = inspect.signature(type(model).learn).parameters["tb_log_name"].default
-        sb3_logger = configure_logger(self.verbose, model.tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
-        return [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
 
 
 class Run:
@@ -256,6 +125,10 @@ class Run:
         self.callbacks: list[BaseCallback] = []
         self.output = RunOutput()
         self.done: dict[str, Any] | None = None
+        self.stop_signal: int | None = None  # the first stop signal (Ctrl-C, SIGTERM, SIGHUP) of a command line's run
+        self.stopping_now = False  # the same signal came again: the run stops at once (:meth:`_stop_at_once`)
+        self.stopped_at_once: Path | None = None
+        self.trained = False  # the training part has ended (what is left: the final evaluation and save)
 
     # ------------------------------------------------------------------------------------------------ the whole run
     def execute(
@@ -295,12 +168,19 @@ class Run:
             if lock is None:
                 held.enter_context(RunFolderLock(self.folder))
             self._set_up(experiment, build, resumed, by_path)
+            self.output = output if output is not None else RunOutput()
             try:
-                if announce is not None:
-                    announce(self)
-                self.write_spec()
-                self.start(experiment, output)
-                return self.train()
+                with self._stop_signals():
+                    try:
+                        if announce is not None:
+                            announce(self)
+                        self.write_spec()
+                        self.start(experiment, self.output)
+                        return self.train()
+                    except KeyboardInterrupt:
+                        if not self.stopping_now:
+                            raise
+                        return self._stop_at_once()
             finally:
                 experiment.close()
 
@@ -383,7 +263,8 @@ class Run:
             if final.is_file():
                 raise ConfigError(
                     f"--resume: {folder} has no checkpoint ({pattern}) and its final model {final.name} holds no resume "
-                    f"state (written by an older version): continue that model with -i {final} instead (a fresh state)."
+                    f"state (a run stopped at once by a second Ctrl-C before its first checkpoint, or one of an older "
+                    f"version): continue that model with -i {final} instead (a fresh state)."
                 )
             raise ConfigError(
                 f"--resume: {folder} has no checkpoint ({pattern}) and no final model: nothing to resume from (a run "
@@ -533,6 +414,8 @@ class Run:
             log=self.log,
         )
         self.callbacks.insert(0, self.checkpoints)
+        if self.stop_signal is not None:  # a stop asked for while the run was set up: at the first rollout start
+            self.checkpoints.request_stop(self.stop_signal)
         if resume is not None and not is_exact(model, state):  # approximate: learn() resets the env and the states
             model._last_obs = None  # type: ignore[assignment]
 
@@ -605,15 +488,15 @@ class Run:
                 if resume is None and self.evaluator is not None:
                     self.evaluator.init_callback(model)
                     self.evaluator.evaluate()  # the curve starts at the start
-                with self._ctrl_c(checkpoints):
-                    experiment.learn(
-                        remaining,
-                        callbacks=[*self.callbacks, *self.output.callbacks],
-                        progress_bar=self.output.progress_bar,
-                        reset_num_timesteps=resume is None and not self.continue_model,
-                    )
+                experiment.learn(
+                    remaining,
+                    callbacks=[*self.callbacks, *self.output.callbacks],
+                    progress_bar=self.output.progress_bar,
+                    reset_num_timesteps=resume is None and not self.continue_model,
+                )
                 if checkpoints.stopped_at is None:
                     end_state = capture_resume_state(model, checkpoints.extras)
+            self.trained = checkpoints.stopped_at is None
             if checkpoints.stopped_at is None and self.evaluator is not None:
                 rows = self.evaluator.rows
                 if not rows or rows[-1]["timesteps"] < model.num_timesteps:
@@ -627,23 +510,62 @@ class Run:
             raise RunStoppedError(self.no_space_message(error)) from None
 
     @contextmanager
-    def _ctrl_c(self, checkpoints: RunCheckpointCallback) -> Iterator[None]:
-        """For a command line's run, in the main thread: the first of :data:`STOP_SIGNALS` (Ctrl-C, ``kill``'s
-        SIGTERM, a closed terminal's SIGHUP) asks for a checkpoint at the next rollout start and a stop there; a
-        second stops at once (``KeyboardInterrupt``)."""
+    def _stop_signals(self) -> Iterator[None]:
+        """For a command line's run, in the main thread, from its set-up to its final save: the first of
+        :data:`STOP_SIGNALS` (Ctrl-C, ``kill``'s SIGTERM, a closed terminal's SIGHUP) asks for a checkpoint at the next
+        rollout start and a stop there (after the training part: the run finishes); a second stops at once
+        (``KeyboardInterrupt``: :meth:`_stop_at_once`); later ones wait for that save."""
         if not self.output.command_line:
             yield
             return
 
         def handler(signum: int, frame: Any) -> None:
-            if checkpoints.stop_requested:
-                raise KeyboardInterrupt
-            checkpoints.request_stop(signum)
             name = signal_name(signum)
+            if self.stopping_now:
+                print(f"\n{name}: saving the model, then stopping")
+                return
+            if self.stop_signal is not None:
+                self.stopping_now = True
+                raise KeyboardInterrupt
+            self.stop_signal = signum
+            if self.trained:
+                print(f"\n{name}: the training is done; finishing the final evaluation and save ({name} again: stop now)")
+                return
+            if self.checkpoints is not None:
+                self.checkpoints.request_stop(signum)
             print(f"\n{name}: writing a checkpoint after this rollout and update, then stopping ({name} again: stop now)")
 
         with handlers_installed(STOP_SIGNALS, handler):
             yield
+
+    def _stop_at_once(self) -> Path:
+        """The second stop signal: save ``<task>.zip`` where the model is (the newest checkpoint stays the resume
+        point: :meth:`stop_line`)."""
+        assert self.experiment is not None and self.experiment.model is not None
+        path = self.experiment.save(self.final_model)
+        if self.clock is not None:
+            self.clock.tick(self.experiment.model.num_timesteps)
+        self.stopped_at_once = path
+        return path
+
+    def stop_line(self) -> str | None:
+        """The one line a command prints for a run stopped early by a signal (``None``: the run was not stopped
+        early): the checkpoint ``--resume`` continues from, or for a run stopped at once before its first
+        checkpoint, the model ``-i`` continues."""
+        if self.stopped_at_once is not None:
+            name = signal_name(self.stop_signal or signal.SIGINT)
+            steps = saved_timesteps(self.stopped_at_once)
+            checkpoint, _ = newest_loading_checkpoint(self.folder)
+            then = (
+                f"the same command with --resume continues from the checkpoint {checkpoint}"
+                if checkpoint is not None
+                else f"no checkpoint was written yet: continue that model with -i {self.stopped_at_once} (a fresh "
+                "state), or start the run again"
+            )
+            return f"Stopped at once ({name} twice): saved {self.stopped_at_once} at {steps or 0:,} agent-steps; {then}."
+        if self.checkpoints is not None and self.checkpoints.stopped_at is not None:
+            return f"Stopped at the checkpoint {self.checkpoints.stopped_at}: the same command with --resume continues it."
+        return None
 
     def _finish(self, end_state: dict[str, Any] | None) -> Path:
         """Save ``<task>.zip`` (with ``end_state``, the resume state of its last step, when there is one); when the
@@ -659,7 +581,8 @@ class Run:
         steps = model.num_timesteps
         self.clock.tick(steps)
         if steps >= self.target_timesteps:
-            self.done = done_record(self.clock.total_s, len(self.clock.segments), steps)
+            start = self.target_timesteps - self.spec.n_timesteps  # a -i model's count before the run (else 0)
+            self.done = done_record(self.clock.total_s, len(self.clock.segments), steps - start, start)
             write_done_file(self.folder, self.done)
             if self.keep_checkpoints is not None:
                 for checkpoint in checkpoint_steps(self.folder).values():

@@ -255,15 +255,21 @@ def write_spec_file(folder: Path, record: dict[str, Any]) -> None:
 
 
 # ---------------------------------------------------------------------------------------------------- done.json
-def done_record(wall_s: float, segments: int, timesteps: int) -> dict[str, Any]:
+def done_record(wall_s: float, segments: int, timesteps: int, model_start: int = 0) -> dict[str, Any]:
     """What a finished run's ``done.json`` holds: the total wall time over its segments (rounded to 0.1 s), the
-    number of segments (processes that worked on it) and its agent-steps.
+    number of segments (processes that worked on it) and the agent-steps it trained (counted against the budget of
+    its ``spec.json``); for a run that continued a loaded model (``-i``), also ``model_start``, the model's agent-step
+    count before the run (its final count is the sum).
 
     :param wall_s: total wall time in seconds
     :param segments: the segments
-    :param timesteps: agent-steps
+    :param timesteps: agent-steps trained by the run
+    :param model_start: the loaded model's agent-steps before the run (0: a new model)
     """
-    return {"wall_s": round(wall_s, 1), "segments": segments, "timesteps": timesteps}
+    record: dict[str, Any] = {"wall_s": round(wall_s, 1), "segments": segments, "timesteps": timesteps}
+    if model_start:
+        record["model_start"] = model_start
+    return record
 
 
 def read_done_file(folder: Path) -> dict[str, Any] | None:

@@ -35,7 +35,14 @@ from sb3_saeir.command_line import (
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
-from sb3_saeir.common.stop_signals import INTERRUPTED_EXIT_STATUS, interrupted_exit_status, signal_name
+from sb3_saeir.common.stop_signals import (
+    INTERRUPTED_EXIT_STATUS,
+    ctrl_c_to_the_command,
+    interrupted_exit_status,
+    signal_name,
+    stop_signal_number,
+    stop_signals_as_ctrl_c,
+)
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.config import ALGOS, ConfigError, parse_params
 from sb3_saeir.envs import list_tasks
@@ -234,9 +241,10 @@ def _execute(
     )
     assert run.clock is not None and run.checkpoints is not None
     print(f"Saved {model_path} after {time.time() - run.clock.start:.0f} s")
-    if run.checkpoints.stopped_at is not None:
-        print(f"Stopped at the checkpoint {run.checkpoints.stopped_at}: the same command with --resume continues it.")
-        raise RunInterruptedError(folder, run.checkpoints.stop_signal)
+    stop_line = run.stop_line()
+    if stop_line is not None:
+        print(stop_line)
+        raise RunInterruptedError(folder, run.stop_signal)
     return folder
 
 
@@ -299,8 +307,10 @@ def build_model(experiment: Experiment, env: VecEnv, args: argparse.Namespace) -
     tensorboard_log = args.tensorboard_log
     if tensorboard_log is None:
         tensorboard_log = experiment.hyperparams.get("tensorboard_log")
-    if args.trained_agent and args.resume is None:
-        model = experiment.load(args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log)
+    if args.trained_agent:  # resumed too: the record then names the same network (the checkpoint's model replaces it)
+        model = experiment.load(
+            args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log, verbose=args.verbose
+        )
         requested = parse_params(args.params).get("policy_kwargs")
         loaded = loaded_network(model, args.trained_agent, requested, experiment.hyperparams.get("policy_kwargs"))
         if loaded is not None:
@@ -382,9 +392,10 @@ def make_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    ctrl_c_to_the_command()
     args = make_parser().parse_args(argv)
     try:
-        with one_line_warnings("sb3_saeir.train"):
+        with one_line_warnings("sb3_saeir.train"), stop_signals_as_ctrl_c():
             return _main(args)
     except (ConfigError, FileExistsError, MissingExtraError, RunFolderInUseError) as error:
         print(f"sb3_saeir.train: error: {error}", file=sys.stderr)
@@ -394,6 +405,11 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except RunInterruptedError as stop:
         return stop.exit_status
+    except KeyboardInterrupt as stop:  # before the run started (a run's own stop is a RunInterruptedError)
+        signum = stop_signal_number(stop)
+        done = "stopped" if args.optimize else "stopped before the run started: nothing was written"
+        print(f"sb3_saeir.train: {signal_name(signum)}: {done}", file=sys.stderr)
+        return interrupted_exit_status(signum)
 
 
 def _main(args: argparse.Namespace) -> int:

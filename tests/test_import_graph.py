@@ -34,6 +34,7 @@ ALGORITHM_MODULES = (
     "sb3_saeir.config",
     "sb3_saeir.command_line",
     "sb3_saeir.run",
+    "sb3_saeir.run_output",
     "sb3_saeir.run_record",
     "sb3_saeir.experiment",
     "sb3_saeir.train",

@@ -18,7 +18,12 @@ from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
-from sb3_saeir.common.stop_signals import StopSignal, interrupted_exit_status, stop_signals_as_ctrl_c
+from sb3_saeir.common.stop_signals import (
+    StopSignal,
+    ctrl_c_to_the_command,
+    interrupted_exit_status,
+    stop_signals_as_ctrl_c,
+)
 from sb3_saeir.config import ALGOS, DEFAULT_N_GAMES, ConfigError, check_hyperparams, load_hyperparams, parse_params
 from sb3_saeir.run_record import RunSpec, check_run_folder_writable, read_spec_file, spec_record
 
@@ -210,6 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (0 done, 1 some run failed, 2 bad arguments or settings that differ
     from the runs in ``--out``, 130 interrupted by Ctrl-C, 143 by SIGTERM, 129 by SIGHUP: the jobs are stopped and
     every run resumes from its newest checkpoint when the command is run again)."""
+    ctrl_c_to_the_command()
     args = _parser().parse_args(argv)
     try:
         with stop_signals_as_ctrl_c():

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
@@ -77,3 +78,45 @@ def stop_signals_as_ctrl_c() -> Iterator[None]:
 
     with handlers_installed((signal.SIGTERM, signal.SIGHUP), handler):
         yield
+
+
+# The command lines that stop on these signals, as ``python -m <name>`` starts them.
+TRAINING_COMMANDS = ("sb3_saeir.train", "sb3_saeir.zoo", "sb3_saeir.benchmark")
+
+
+def started_command() -> str | None:
+    """The training command this process was started as (``python -m sb3_saeir.train ...``: one of
+    :data:`TRAINING_COMMANDS`), else ``None`` (a script or a session that imports the package)."""
+    argv = list(getattr(sys, "orig_argv", []))
+    if "-m" not in argv[:-1]:
+        return None
+    name = argv[argv.index("-m") + 1]
+    return name if name in TRAINING_COMMANDS else None
+
+
+def _interrupted_while_starting(signum: int, frame: Any) -> None:
+    print(f"{started_command()}: Ctrl-C while starting: stopped, nothing was written", file=sys.stderr)
+    raise SystemExit(INTERRUPTED_EXIT_STATUS)
+
+
+def exit_on_ctrl_c_while_starting() -> None:
+    """In a process started as a training command (:func:`started_command`), from the package's import on: Ctrl-C
+    ends it with one line and exit status 130 instead of an import traceback, until the command's ``main`` takes
+    Ctrl-C over (:func:`ctrl_c_to_the_command`). Nothing changes in any other process."""
+    if started_command() is None or threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _interrupted_while_starting)
+
+
+def ctrl_c_to_the_command() -> None:
+    """At the start of a training command's ``main``: Ctrl-C raises ``KeyboardInterrupt`` again (Python's default),
+    for the command to handle (:func:`exit_on_ctrl_c_while_starting` handled it while the package was imported)."""
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    if in_main_thread and signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def stop_signal_number(stop: KeyboardInterrupt) -> int:
+    """The signal behind a ``KeyboardInterrupt``: a :class:`StopSignal`'s, else SIGINT (Ctrl-C)."""
+    return stop.signum if isinstance(stop, StopSignal) else int(signal.SIGINT)

@@ -19,7 +19,13 @@ from sb3_saeir.command_line import check_folder, check_seed_option, one_line_war
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import SPEC_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
-from sb3_saeir.common.stop_signals import interrupted_exit_status
+from sb3_saeir.common.stop_signals import (
+    ctrl_c_to_the_command,
+    interrupted_exit_status,
+    signal_name,
+    stop_signal_number,
+    stop_signals_as_ctrl_c,
+)
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
 from sb3_saeir.experiment import find_run_folder
@@ -225,6 +231,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     :param argv: the arguments (default: ``sys.argv[1:]``)
     :return: exit status
     """
+    ctrl_c_to_the_command()
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] not in ("train", "enjoy"):
         print(
@@ -275,15 +282,20 @@ def _run_train(argv: Sequence[str]) -> int:
         if command.resume is not None:
             command.folder, command.record, new_argv = claim_resumed_run(new_argv, command.resume, command)
         sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
-        train_with_manager(command)
+        with stop_signals_as_ctrl_c():
+            train_with_manager(command)
     except (ConfigError, RunFolderInUseError) as error:
         print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as stop:  # before the run started (the run handles its own stop)
+        signum = stop_signal_number(stop)
+        print(f"sb3_saeir.zoo: {signal_name(signum)}: stopped before the run started: nothing was written", file=sys.stderr)
+        return interrupted_exit_status(signum)
     finally:
         if command.lock is not None:
             command.lock.release()
-    if command.stopped_at is not None:
-        print(f"Stopped at the checkpoint {command.stopped_at}: the same command with --resume continues it.")
+    if command.stop_line is not None:
+        print(command.stop_line)
         return interrupted_exit_status(command.stop_signal)
     return 0
 

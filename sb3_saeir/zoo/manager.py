@@ -37,7 +37,8 @@ class ZooTrain:
     :param record: its settings record
     :param lock: the run folder's lock: the resumed folder's, or the new run's (taken by
         :meth:`RunExperimentManager.setup_experiment`); the launcher gives it back
-    :param stopped_at: the checkpoint a run stopped at early (Ctrl-C, SIGTERM, SIGHUP; set by ``learn``)
+    :param stop_line: the line of a run stopped early (Ctrl-C, SIGTERM, SIGHUP; set by ``learn``:
+        :meth:`~sb3_saeir.run.Run.stop_line`)
     :param stop_signal: the signal that stopped it
     """
 
@@ -46,7 +47,7 @@ class ZooTrain:
     folder: Path | None = None
     record: dict[str, Any] | None = None
     lock: RunFolderLock | None = None
-    stopped_at: Path | None = None
+    stop_line: str | None = None
     stop_signal: int | None = None
 
 
@@ -117,14 +118,16 @@ class RunExperimentManager(ExperimentManager):
         try:
             result = super().setup_experiment()
             loaded = None
-            if result is not None and self.trained_agent and self.zoo_train.folder is None:  # -i: what trains
+            if result is not None and self.trained_agent:  # -i: what trains (resumed too: the record compares it)
                 requested = (self.custom_hyperparams or {}).get("policy_kwargs")
                 loaded = loaded_network(result[0], self.trained_agent, requested, result[1].get("policy_kwargs"))
-        except Exception as error:
+        except BaseException as error:  # Ctrl-C too: nothing is left behind
             if new_run and self.zoo_train.lock is not None:
                 self.zoo_train.lock.release()
                 self.zoo_train.lock = None
             remove_created_folders(created)
+            if not isinstance(error, Exception):
+                raise
             raise ConfigError(f"cannot set up {self.algo} on {self.env_name}: {one_line(error)}") from error
         self.saeir_config = dict(result[1]) if result is not None else {}
         if loaded is not None:  # the run's record says which network trains
@@ -185,7 +188,7 @@ class RunExperimentManager(ExperimentManager):
             announce=_announce_resume,
         )
         assert run.checkpoints is not None
-        self.zoo_train.stopped_at, self.zoo_train.stop_signal = run.checkpoints.stopped_at, run.checkpoints.stop_signal
+        self.zoo_train.stop_line, self.zoo_train.stop_signal = run.stop_line(), run.stop_signal
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         """On a package task nothing: the run saved ``<task>.zip`` (:meth:`learn`)."""

@@ -1,0 +1,159 @@
+"""Ctrl-C at any moment of ``train`` and ``zoo train`` (``docs/guide/training.md``, "Signals"): while the package is
+imported, while the run is set up, during the first evaluation, twice in a row, during the final evaluation. Each
+prints one line, no traceback; each stop exits 130 and leaves a folder whose ``--resume`` answer is true."""
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).parent.parent
+TASK = "cn-sparse-n3"
+TIMEOUT = 180
+SETTINGS = ["--task", TASK, "--n-games", "2", "--num-threads", "1", "-params", "n_steps:10"]  # 60 agent-steps a rollout
+
+
+def train_command(log_folder, *extra):
+    return [sys.executable, "-m", "sb3_saeir.train", "--algo", "mappo", *SETTINGS, "-f", str(log_folder), *extra]
+
+
+def zoo_command(log_folder, *extra):
+    return [
+        sys.executable, "-m", "sb3_saeir.zoo", "train", "--algo", "mappo", "--env", TASK, "--num-threads", "1",
+        "--device", "cpu", "--seed", "0", "-f", str(log_folder), "-params", "n_envs:2", "n_steps:10", *extra,
+    ]  # fmt: skip
+
+
+def child_env():
+    return {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
+
+
+def start(command):
+    return subprocess.Popen(
+        command, cwd=REPO, env=child_env(), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+
+
+def wait_for(process, ready):
+    deadline = time.time() + TIMEOUT
+    while not ready():
+        assert process.poll() is None, f"the run ended before it could be stopped: {process.communicate()}"
+        assert time.time() < deadline
+        time.sleep(0.005)
+
+
+def finish(process):
+    stdout, stderr = process.communicate(timeout=TIMEOUT)
+    assert "Traceback" not in stderr.decode(), stderr.decode()[-3000:]
+    return process.returncode, stdout.decode(), stderr.decode()
+
+
+def trained_rows(folder):
+    """progress.csv's rows of the rollouts (SB3 writes one after each rollout, before its update; an evaluation
+    writes rows of its own)."""
+    path = folder / "progress.csv"
+    if not path.is_file():
+        return 0
+    with path.open() as file:
+        return sum(1 for row in csv.DictReader(file) if row.get("time/iterations"))
+
+
+def ctrl_c_twice(process, gap_s=0.03):
+    os.kill(process.pid, signal.SIGINT)
+    time.sleep(gap_s)
+    os.kill(process.pid, signal.SIGINT)
+
+
+def test_ctrl_c_while_importing_exits_130_in_one_line(tmp_path):
+    process = start(train_command(tmp_path, "-n", "600"))
+    time.sleep(0.3)  # the package's import takes seconds
+    os.kill(process.pid, signal.SIGINT)
+    status, _, stderr = finish(process)
+    assert status == 130
+    (line,) = [line for line in stderr.splitlines() if line.startswith("sb3_saeir.train")]
+    assert "Ctrl-C" in line and "nothing was written" in line
+    assert not (tmp_path / "mappo").exists()
+
+
+@pytest.mark.parametrize("save_freq", [None, "60"])
+def test_ctrl_c_twice_saves_the_model_and_names_what_continues_it(tmp_path, save_freq):
+    """The second Ctrl-C 30 ms after the first: the model is saved where it is, one line names the checkpoint that
+    ``--resume`` continues from (or, with none yet, the ``-i`` that continues the model), exit 130."""
+    extra = ["-n", "30000", "--eval-freq", "0"] + (["--save-freq", save_freq] if save_freq else [])
+    process = start(train_command(tmp_path, *extra))
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    wait_for(process, lambda: trained_rows(folder) >= 2)
+    ctrl_c_twice(process)
+    status, stdout, _ = finish(process)
+    assert status == 130
+    (line,) = [line for line in stdout.splitlines() if line.startswith("Stopped")]
+    assert line.startswith("Stopped at once (Ctrl-C twice): saved") and (folder / f"{TASK}.zip").is_file()
+    resumed = subprocess.run(
+        train_command(tmp_path, *extra, "--resume"), cwd=REPO, env=child_env(), capture_output=True, text=True,
+        timeout=TIMEOUT,
+    ) if save_freq is None else None  # fmt: skip
+    if save_freq is None:  # no checkpoint yet: -i continues the model, and --resume says so
+        assert f"continue that model with -i {folder / (TASK + '.zip')}" in line
+        assert resumed is not None and resumed.returncode == 2
+        assert "a run stopped at once by a second Ctrl-C" in resumed.stderr
+        assert f"-i {folder / (TASK + '.zip')}" in resumed.stderr
+    else:
+        assert "the same command with --resume continues from the checkpoint" in line
+        checkpoint = Path(line.rsplit(" ", 1)[1].rstrip("."))
+        assert checkpoint.is_file()
+
+
+def test_ctrl_c_during_the_first_evaluation_stops_at_the_first_checkpoint(tmp_path):
+    """Before the first rollout (the evaluation at 0 agent-steps): the stop comes at the first rollout start, whose
+    checkpoint ``--resume`` continues from."""
+    extra = ["-n", "120", "--eval-freq", "60", "--eval-episodes", "100"]
+    process = start(train_command(tmp_path, *extra))
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    wait_for(process, lambda: (folder / "spec.json").is_file())
+    os.kill(process.pid, signal.SIGINT)
+    status, stdout, _ = finish(process)
+    assert status == 130
+    assert "Stopped at the checkpoint" in stdout and (folder / "rl_model_0_steps.zip").is_file()
+    resumed = subprocess.run(
+        train_command(tmp_path, *extra, "--resume"), cwd=REPO, env=child_env(), capture_output=True, text=True,
+        timeout=TIMEOUT,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert (folder / "done.json").is_file()
+
+
+def test_ctrl_c_during_the_final_evaluation_finishes_the_run(tmp_path):
+    """After the last rollout (during its update or the final evaluation): the run finishes (final evaluation, model,
+    ``done.json``) and exits 0."""
+    process = start(train_command(tmp_path, "-n", "60", "--eval-freq", "100000", "--eval-episodes", "300"))
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    wait_for(process, lambda: trained_rows(folder) >= 1)  # the one rollout is done (its update follows)
+    time.sleep(0.3)  # the update takes milliseconds, the final evaluation of 300 game episodes about a second
+    os.kill(process.pid, signal.SIGINT)
+    status, _, _ = finish(process)
+    assert status == 0 and (folder / "done.json").is_file()
+
+
+def test_zoo_ctrl_c_twice_exits_130_with_one_line(tmp_path):
+    process = start(zoo_command(tmp_path, "-n", "30000", "--eval-freq", "0"))
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    wait_for(process, lambda: trained_rows(folder) >= 2)
+    ctrl_c_twice(process)
+    status, stdout, _ = finish(process)
+    assert status == 130
+    (line,) = [line for line in stdout.splitlines() if line.startswith("Stopped")]
+    assert line.startswith("Stopped at once (Ctrl-C twice)") and (folder / f"{TASK}.zip").is_file()
+
+
+def test_zoo_ctrl_c_while_starting_leaves_nothing(tmp_path):
+    process = start(zoo_command(tmp_path, "-n", "600"))
+    time.sleep(0.3)
+    os.kill(process.pid, signal.SIGINT)
+    status, _, stderr = finish(process)
+    assert status == 130 and "nothing was written" in stderr
+    assert not (tmp_path / "mappo").exists()

@@ -33,7 +33,7 @@ from sb3_saeir.common.run_files import (
     SHORTER_RUN_MODEL,
     SPEC_FILE,
 )
-from sb3_saeir.common.run_lock import RunFolderLock
+from sb3_saeir.common.run_lock import RunFolderLock, RunFolderWatch
 from sb3_saeir.common.run_state import (
     RunCheckpointCallback,
     SegmentClock,
@@ -48,7 +48,7 @@ from sb3_saeir.common.stop_signals import STOP_SIGNALS, handlers_installed, sign
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
 from sb3_saeir.experiment import Experiment, evaluation_seed
-from sb3_saeir.run_output import RunEvalCallback, RunOutput
+from sb3_saeir.run_output import RunEvalCallback, RunFolderCheck, RunOutput
 from sb3_saeir.run_record import (
     ResumePoint,
     RunLog,
@@ -72,6 +72,8 @@ from sb3_saeir.run_record import (
 
 # errno values of a write that failed for want of space.
 NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+# What a write into a folder made read-only (or a read-only mount) fails with.
+UNWRITABLE_ERRNOS = (errno.EACCES, errno.EPERM, errno.EROFS)
 
 
 class RunStoppedError(RuntimeError):
@@ -129,6 +131,7 @@ class Run:
         self.stopping_now = False  # the same signal came again: the run stops at once (:meth:`_stop_at_once`)
         self.stopped_at_once: Path | None = None
         self.trained = False  # the training part has ended (what is left: the final evaluation and save)
+        self.watch: RunFolderWatch | None = None
 
     # ------------------------------------------------------------------------------------------------ the whole run
     def execute(
@@ -183,6 +186,8 @@ class Run:
                         return self._stop_at_once()
             finally:
                 experiment.close()
+                if self.watch is not None:
+                    self.watch.close()
 
     def _set_up(
         self,
@@ -391,6 +396,7 @@ class Run:
         else:
             self.target_timesteps = (model.num_timesteps if self.continue_model else 0) + self.spec.n_timesteps
         self.clock = SegmentClock(self.folder / SEGMENTS_FILE, done_steps or 0)
+        self.watch = RunFolderWatch(self.folder)
         rollout = int(getattr(model, "n_steps", 1)) * experiment.env.num_envs
         expected_rows = state.get("progress_rows") if state is not None else None
         offset = (done_steps or 0) // rollout
@@ -413,7 +419,7 @@ class Run:
             on_checkpoint=self._on_checkpoint,
             log=self.log,
         )
-        self.callbacks.insert(0, self.checkpoints)
+        self.callbacks[:0] = [RunFolderCheck(self.check_folder), self.checkpoints]
         if self.stop_signal is not None:  # a stop asked for while the run was set up: at the first rollout start
             self.checkpoints.request_stop(self.stop_signal)
         if resume is not None and not is_exact(model, state):  # approximate: learn() resets the env and the states
@@ -504,10 +510,17 @@ class Run:
                     self.evaluator.evaluate()  # the final evaluation
             return self._finish(end_state)
         except OSError as error:
-            if error.errno not in NO_SPACE_ERRNOS:
+            change = self.watch.change() if self.watch is not None else None
+            if change is not None:
+                message = self.moved_message(change)
+            elif error.errno in NO_SPACE_ERRNOS:
+                message = self.no_space_message(error)
+            elif error.errno in UNWRITABLE_ERRNOS:
+                message = self.unwritable_message(error)
+            else:
                 raise
             self._close_quietly()
-            raise RunStoppedError(self.no_space_message(error)) from None
+            raise RunStoppedError(message) from None
 
     @contextmanager
     def _stop_signals(self) -> Iterator[None]:
@@ -572,6 +585,7 @@ class Run:
         budget is reached, write ``done.json`` and drop the kept checkpoints (the final model is the resume point of a
         larger budget)."""
         assert self.experiment is not None and self.experiment.model is not None and self.clock is not None
+        self.check_folder()
         model = self.experiment.model
         if end_state is not None:
             path = self.final_model
@@ -588,6 +602,50 @@ class Run:
                 for checkpoint in checkpoint_steps(self.folder).values():
                     checkpoint.unlink(missing_ok=True)
         return path
+
+    def check_folder(self) -> None:
+        """Stop the run before it writes, when its folder was moved or deleted while it trained (:meth:`start`'s
+        :class:`~sb3_saeir.common.run_lock.RunFolderWatch`): a :class:`RunStoppedError` that says what happened and
+        what can be resumed (:meth:`moved_message`). The old path is never made again."""
+        change = self.watch.change() if self.watch is not None else None
+        if change is not None:
+            self._close_quietly()
+            raise RunStoppedError(self.moved_message(change))
+
+    def moved_message(self, change: str) -> str:
+        """One line for a run whose folder was moved or deleted while it trained (``change``:
+        :meth:`~sb3_saeir.common.run_lock.RunFolderWatch.change`)."""
+        assert self.experiment is not None and self.experiment.model is not None
+        stopped = (
+            f"the run folder {self.folder} was {change} while the run trained: the run stopped at "
+            f"{self.experiment.model.num_timesteps:,} agent-steps and wrote nothing more (the old path is not made again)"
+        )
+        if change == "deleted":
+            return f"{stopped}; nothing is left to resume: start the run again."
+        now = self.watch.current_path() if self.watch is not None else None
+        checkpoint = newest_loading_checkpoint(now)[0] if now is not None else None
+        if now is None or checkpoint is None:
+            return f"{stopped}; it has no checkpoint to resume from: start the run again."
+        return (
+            f"{stopped}; its newest checkpoint is {checkpoint}: move the folder back to {self.folder} and run the "
+            f"same command (train and zoo train: with --resume, or --resume {now} where it is now)."
+        )
+
+    def unwritable_message(self, error: OSError) -> str:
+        """One line for a run stopped by a folder that cannot be written any more (made read-only while it trained)."""
+        assert self.experiment is not None and self.experiment.model is not None
+        what = f"{error.strerror or 'permission denied'}" + (f" writing {error.filename}" if error.filename else "")
+        checkpoint, _ = newest_loading_checkpoint(self.folder)
+        then = (
+            f"run the same command with --resume to continue from {checkpoint.name}"
+            if checkpoint is not None
+            else "start the run again (it has no checkpoint to resume from)"
+        )
+        return (
+            f"{what}: the run folder {self.folder} cannot be written any more; the run stopped at "
+            f"{self.experiment.model.num_timesteps:,} agent-steps. Make it writable (chmod -R u+w {self.folder}), then "
+            f"{then}."
+        )
 
     def no_space_message(self, error: OSError) -> str:
         """One line for a run stopped by a full disk: what failed, the run's folder, the checkpoint to resume from."""

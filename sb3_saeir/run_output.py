@@ -142,3 +142,22 @@ class RunOutput:
         tb_log_name = inspect.signature(type(model).learn).parameters["tb_log_name"].default
         sb3_logger = configure_logger(self.verbose, model.tensorboard_log, tb_log_name, reset_num_timesteps=not continued)
         return [output for output in sb3_logger.output_formats if type(output).__name__ != "CSVOutputFormat"]
+
+
+class RunFolderCheck(BaseCallback):
+    """Calls ``check`` (:meth:`~sb3_saeir.run.Run.check_folder`) at each rollout start and step, before the other
+    callbacks of the run write: a run whose folder was moved or deleted stops before it writes again.
+
+    :param check: raises when the run must stop
+    """
+
+    def __init__(self, check: Callable[[], None]) -> None:
+        super().__init__()
+        self.check = check
+
+    def _on_rollout_start(self) -> None:
+        self.check()
+
+    def _on_step(self) -> bool:
+        self.check()
+        return True

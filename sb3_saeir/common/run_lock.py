@@ -100,3 +100,57 @@ def _command_line(pid: str) -> str:
         return ""
     text = " ".join(word.decode(errors="replace") for word in words if word)
     return f" ({text if len(text) <= 300 else text[:300] + ' ...'})" if text else ""
+
+
+class RunFolderWatch:
+    """Where a run's folder is while its run trains: an open descriptor of the folder taken at the start, so that a
+    folder moved, deleted or replaced is told apart from one in place, and a moved folder's new path is found (Linux:
+    ``/proc/self/fd``; macOS: ``F_GETPATH``). A run checks it before it writes (``docs/guide/training.md``, "The run
+    folder moved, deleted or read-only"): it never writes at, or makes again, a path its folder has left.
+
+    :param folder: the run folder (it exists)
+    """
+
+    def __init__(self, folder: str | os.PathLike[str]) -> None:
+        self.folder = Path(folder)
+        self._fd: int | None = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+        self._identity = _identity(os.fstat(self._fd))
+
+    def change(self) -> str | None:
+        """What happened to the folder: ``"deleted"``, ``"moved to <path>"`` (``"moved"`` where the new path cannot be
+        read), or ``None`` while it is in place."""
+        if self._fd is None:
+            return None
+        try:
+            in_place = _identity(os.stat(self.folder)) == self._identity
+        except OSError:
+            in_place = False
+        if in_place:
+            return None
+        if os.fstat(self._fd).st_nlink == 0:
+            return "deleted"
+        now = self.current_path()
+        return f"moved to {now}" if now is not None else "moved"
+
+    def current_path(self) -> Path | None:
+        """The folder's path now (``None`` where the system cannot tell, or the folder is deleted)."""
+        if self._fd is None:
+            return None
+        try:
+            if hasattr(fcntl, "F_GETPATH"):  # macOS
+                path = fcntl.fcntl(self._fd, fcntl.F_GETPATH, bytes(1024)).rstrip(b"\0").decode()
+            else:
+                path = os.readlink(f"/proc/self/fd/{self._fd}")
+        except OSError:
+            return None
+        return None if path.endswith(" (deleted)") else Path(path)
+
+    def close(self) -> None:
+        """Close the descriptor."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _identity(status: os.stat_result) -> tuple[int, int]:
+    return status.st_dev, status.st_ino

@@ -29,6 +29,7 @@ from sb3_saeir.common.stop_signals import (
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
 from sb3_saeir.experiment import find_run_folder
+from sb3_saeir.run import RunStoppedError
 from sb3_saeir.run_record import check_run_folder_writable, read_spec_file
 from sb3_saeir.zoo.registration import (
     WRAPPER_NAME,
@@ -287,6 +288,9 @@ def _run_train(argv: Sequence[str]) -> int:
     except (ConfigError, RunFolderInUseError) as error:
         print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
         return 2
+    except RunStoppedError as error:  # a full disk, a run folder moved, deleted or made read-only
+        print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt as stop:  # before the run started (the run handles its own stop)
         signum = stop_signal_number(stop)
         print(f"sb3_saeir.zoo: {signal_name(signum)}: stopped before the run started: nothing was written", file=sys.stderr)

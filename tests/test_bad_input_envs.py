@@ -497,6 +497,16 @@ class OffApiMeetEnv(ToyMeetEnv):
         observations, rewards, terminations, truncations, infos = super().step(actions)
         if self.fault == "empty_infos_step":
             infos = {}
+        if self.fault == "termination_missing":
+            del terminations["agent_1"]
+        if self.fault == "truncation_missing":
+            del truncations["agent_2"]
+        if self.fault == "termination_none":
+            terminations["agent_0"] = None
+        if self.fault == "truncation_text":
+            truncations["agent_0"] = "False"
+        if self.fault == "info_none":
+            infos["agent_0"] = None
         if self.fault == "array_reward":
             rewards = {agent: np.array([reward]) for agent, reward in rewards.items()}
         return observations, rewards, terminations, truncations, infos
@@ -524,3 +534,60 @@ def test_off_api_returns_are_named_in_one_line(fault, expected):
     with pytest.raises(ValueError) as excinfo:
         _run(make_multiagent_vec_env(lambda: OffApiMeetEnv(fault), n_games=2))
     assert expected in _one_line(excinfo, "toy_meet_v0: game 0")
+
+
+# ------------------------------------------------------------- round 6: the flags and infos of a step, the agents' names
+@pytest.mark.parametrize("num_cpus", [0, 2])
+@pytest.mark.parametrize(
+    "fault, expected",
+    [
+        ("termination_missing", "agent 1 (agent_1), step 1 of its episode: no entry in terminations"),
+        ("truncation_missing", "agent 2 (agent_2), step 1 of its episode: no entry in truncations"),
+        ("termination_none", "agent 0 (agent_0), step 1 of its episode: terminations holds NoneType None; a flag is"),
+        ("truncation_text", "agent 0 (agent_0), step 1 of its episode: truncations holds str 'False'; a flag is"),
+        ("info_none", "agent 0 (agent_0), step 1 of its episode: the info is NoneType None; step must return an info"),
+    ],
+)
+def test_step_flags_and_infos_are_checked_alike_in_process_and_in_workers(fault, expected, num_cpus):
+    """A missing flag raised SuperSuit's broadcast error in this process and trained silently in worker processes;
+    ``None`` or ``"False"`` raised ``int()``'s error; a ``None`` info, two other raw errors."""
+    env = make_multiagent_vec_env(lambda: OffApiMeetEnv(fault), n_games=2, num_cpus=num_cpus)
+    try:
+        with pytest.raises(ValueError) as excinfo:
+            _run(env)
+        assert expected in _one_line(excinfo, "toy_meet_v0: game 0")
+    finally:
+        env.close()
+
+
+class TupleAgentsMeetEnv(ToyMeetEnv):
+    def __init__(self):
+        super().__init__()
+        self.possible_agents = tuple(self.possible_agents)
+
+
+class TwinNamesMeetEnv(ToyMeetEnv):
+    def __init__(self):
+        super().__init__()
+        self.possible_agents = ["agent_0", "agent_0", "agent_2"]
+
+
+class NoSeedMeetEnv(ToyMeetEnv):
+    def reset(self):
+        return super().reset()
+
+
+@pytest.mark.parametrize(
+    "env_fn, expected",
+    [
+        (TupleAgentsMeetEnv, "TupleAgentsMeetEnv.possible_agents is tuple ('agent_0', 'agent_1', 'agent_2'); PettingZoo's"),
+        (TwinNamesMeetEnv, "TwinNamesMeetEnv.possible_agents names ['agent_0'] more than once"),
+        (NoSeedMeetEnv, "NoSeedMeetEnv.reset takes no seed or options; PettingZoo's parallel API is reset(self, seed=None"),
+    ],
+)
+def test_agents_names_and_reset_keywords_are_checked_when_the_env_is_made(env_fn, expected):
+    """A tuple gave SuperSuit's message on agents that die; twin names trained two slots on one agent's data; a reset
+    without seed gave Python's TypeError."""
+    with pytest.raises((TypeError, ValueError)) as excinfo:
+        make_multiagent_vec_env(env_fn, n_games=2)
+    assert expected in _one_line(excinfo, "possible_agents" if env_fn is not NoSeedMeetEnv else "reset")

@@ -8,6 +8,7 @@ game, the agent and the step of its episode (``docs/guide/custom_env.md``).
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -130,14 +131,31 @@ class CheckedParallelEnv(BaseParallelWrapper):
                 raise GameFaultError(
                     f"{self._where()}: {call} returned {name} = {_describe(part)}; PettingZoo's parallel API returns {shape}."
                 )
-        if call == "step":  # SuperSuit reads every agent's info after a step (a raw KeyError)
-            missing = next((agent for agent in self._agent_names if agent not in returned[-1]), None)
-            if missing is not None:
+        if call == "step":
+            self._check_step_flags(returned[2], returned[3], returned[4])
+        return returned
+
+    def _check_step_flags(self, terminations: dict, truncations: dict, infos: dict) -> None:
+        """Every agent of ``possible_agents`` has its termination and truncation flag (a bool, or 0 / 1) and its info
+        dict after a step: SuperSuit reads them all (a raw ``KeyError``, ``int()`` or broadcast error in this
+        process, while the worker processes went on)."""
+        for name, flags in (("terminations", terminations), ("truncations", truncations)):
+            for agent in self._agent_names:
+                if agent not in flags:
+                    raise GameFaultError(
+                        f"{self._where(agent)}: no entry in {name}; step must return a flag for every agent of "
+                        "possible_agents (False while the agent plays on)."
+                    )
+                flag = flags[agent]
+                if not isinstance(flag, (bool, np.bool_, int, np.integer)) or flag not in (0, 1):
+                    raise GameFaultError(f"{self._where(agent)}: {name} holds {_describe(flag)}; a flag is True or False.")
+        for agent in self._agent_names:
+            if not isinstance(infos.get(agent), dict):
+                got = "no info" if agent not in infos else f"the info is {_describe(infos[agent])}"
                 raise GameFaultError(
-                    f"{self._where(missing)}: no info; step must return an info dict for every agent of possible_agents "
+                    f"{self._where(agent)}: {got}; step must return an info dict for every agent of possible_agents "
                     "({} when there is nothing to say)."
                 )
-        return returned
 
     def _game_name(self) -> str:
         return str((getattr(self.env, "metadata", None) or {}).get("name") or type(self.env.unwrapped).__name__)
@@ -296,9 +314,20 @@ def check_parallel_env(par_env: Any) -> None:
             f"Expected a PettingZoo ParallelEnv, got {type(par_env).__name__}. For a single-agent gymnasium env use "
             "stable_baselines3.common.env_util.make_vec_env instead."
         )
+    if not isinstance(par_env.possible_agents, list):
+        raise TypeError(
+            f"{type(par_env).__name__}.possible_agents is {_describe(par_env.possible_agents)}; PettingZoo's API (and "
+            "SuperSuit's vector env) needs a list: possible_agents = list(...)."
+        )
     agents = list(par_env.possible_agents)
     if len(agents) == 0:
         raise ValueError("The parallel env has no agents (`possible_agents` is empty).")
+    repeated = sorted({str(agent) for agent in agents if agents.count(agent) > 1})
+    if repeated:
+        raise ValueError(
+            f"{type(par_env).__name__}.possible_agents names {repeated} more than once; each agent needs a name of its "
+            "own (its slot, observation and reward are looked up by it)."
+        )
     obs_space = par_env.observation_space(agents[0])
     act_space = par_env.action_space(agents[0])
     odd_obs = [a for a in agents if par_env.observation_space(a) != obs_space]
@@ -347,9 +376,31 @@ def probe_game(env_fn: ParallelEnvFactory) -> ParallelEnv:
     """
     game = env_fn()
     check_parallel_env(game)
+    check_reset_signature(game)
     check_action_space("make_multiagent_vec_env", game.action_space(game.possible_agents[0]))
     warn_late_black_death(game)
     return game
+
+
+def check_reset_signature(game: Any) -> None:
+    """Refuse a game whose ``reset`` does not take PettingZoo's ``seed`` and ``options`` keywords (the vec envs seed
+    every game through them; Python's ``TypeError`` named neither the API nor the fix).
+
+    :param game: one game
+    """
+    try:
+        parameters = inspect.signature(game.reset).parameters
+    except (TypeError, ValueError):  # a builtin or C method: left to the call
+        return
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in parameters.values()):
+        return
+    missing = [name for name in ("seed", "options") if name not in parameters]
+    if missing:
+        raise TypeError(
+            f"{type(game).__name__}.reset takes no {' or '.join(missing)}; PettingZoo's parallel API is "
+            "reset(self, seed=None, options=None), and the vec envs seed each game through it: add the keywords (seed "
+            "the game's random generator with seed when it is not None)."
+        )
 
 
 # SuperSuit releases whose black_death_v3 ends a game only when its agents are terminated *and* truncated at once

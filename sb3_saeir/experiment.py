@@ -84,6 +84,7 @@ class Experiment:
     ) -> None:
         if algo not in ALGOS:
             raise KeyError(f"Unknown algorithm {algo!r}. Valid choices: {', '.join(sorted(ALGOS))}.")
+        get_task_spec(task)  # an unknown id: a KeyError naming the registered tasks, here rather than at build()
         self.algo = algo
         self.task = task
         self.hyperparams = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)

@@ -803,3 +803,117 @@ def test_set_parameters_of_another_shape_is_refused_and_nothing_is_set(small_mod
     assert f"policy[{first!r}] (3, 3) for" in message and "nothing was set" in message and "\n" not in message
     after = small_model.policy.state_dict()
     assert all(th.equal(before[key], after[key]) for key in before)
+
+
+# ------------------------------------------------------------------------------------------------ round 6 (issue 67)
+@pytest.mark.parametrize(
+    "learn_kwargs, words",
+    [
+        ({"reset_num_timesteps": "no"}, ("MAPPO.learn", "reset_num_timesteps", "'no'")),
+        ({"progress_bar": "yes"}, ("MAPPO.learn", "progress_bar", "'yes'")),
+        ({"tb_log_name": None}, ("MAPPO.learn: tb_log_name=None must be a folder name",)),
+        ({"tb_log_name": "../../escape"}, ("MAPPO.learn: tb_log_name='../../escape' must be a folder name", "no path")),
+    ],
+)
+def test_learn_options_that_sb3_misreads_are_refused(env, tiny_kwargs, learn_kwargs, words):
+    """``"no"`` was read as True; ``None`` failed in ``os.path``; a path wrote outside ``tensorboard_log``."""
+    model = MAPPO("MAPPOPolicy", env, **tiny_kwargs)
+    model.learn(60)
+    with pytest.raises(ValueError) as error:
+        model.learn(60, **learn_kwargs)
+    one_line(error, *words)
+    assert model.num_timesteps == 60
+
+
+def test_learn_of_a_model_loaded_without_env_names_the_fix(env, tiny_kwargs, tmp_path):
+    MAPPO("MAPPOPolicy", env, **tiny_kwargs).save(tmp_path / "model.zip")
+    with pytest.raises(ValueError) as error:
+        MAPPO.load(tmp_path / "model.zip").learn(60)  # SB3: an AssertionError without a message
+    one_line(error, "MAPPO.learn: the model has no env", "pass env= to load, or call model.set_env(env)")
+
+
+@pytest.mark.parametrize(
+    "call, error_type, words",
+    [
+        (lambda model, path: model.save(123), TypeError, ("MAPPO.save: path=123; pass a file path",)),
+        (lambda model, path: MAPPO.load(path, custom_objects=[("gamma", 0.9)]), TypeError, ("custom_objects=", "a dict")),
+        (lambda model, path: model.set_env(None), ValueError, ("MAPPO.set_env: env=None",)),
+        (lambda model, path: model.set_env(ToyMeetEnv()), ValueError, ("MAPPO.set_env needs a multi-agent vec env",)),
+        (lambda model, path: model.set_parameters(path.parent / "none.zip"), FileNotFoundError,
+         ("MAPPO.set_parameters: no such file", "none.zip'")),
+        (lambda model, path: model.set_parameters(path, exact_match="no"), ValueError, ("exact_match", "'no'")),
+    ],
+)  # fmt: skip
+def test_model_method_arguments_are_refused_in_one_line(env, tiny_kwargs, tmp_path, call, error_type, words):
+    """Raw errors before: SB3's type list, ``'list' object is not a mapping``, gym's patch message, ``none.zip.zip``;
+    ``exact_match="no"`` was read as True."""
+    model = MAPPO("MAPPOPolicy", env, **tiny_kwargs)
+    path = tmp_path / "model.zip"
+    model.save(path)
+    with pytest.raises(error_type) as error:
+        call(model, path)
+    one_line(error, *words)
+
+
+def test_policy_kwargs_and_an_unused_intrinsic_coef_are_refused(env, tiny_kwargs):
+    with pytest.raises(TypeError) as error:
+        MAPPO("MAPPOPolicy", env, **{**tiny_kwargs, "policy_kwargs": [("hidden_size", 8)]})  # 'list' is not a mapping
+    one_line(error, "MAPPO: policy_kwargs must be a dict")
+    with pytest.raises(ValueError) as error:
+        MAPPO("MAPPOPolicy", env, intrinsic_coef=0.5, **tiny_kwargs)  # was accepted, and ignored
+    one_line(error, "intrinsic_coef=0.5 given with intrinsic_reward=None would be ignored")
+
+
+@pytest.mark.parametrize(
+    "call, error_type, words",
+    [
+        (lambda register: register(None, "my_package:Game"), TypeError, ("task_id=None must be a non-empty string",)),
+        (lambda register: register("t", ToyMeetEnv), ValueError, ("entry_point=", "'module:callable'")),
+        (lambda register: register("t", "my_package.Game"), ValueError, ("entry_point='my_package.Game'",)),
+        (lambda register: register("t", "m:G", main_metric=5), TypeError, ("main_metric=5",)),
+        (lambda register: register("t", "m:G", kwargs=[("n", 2)]), TypeError, ("kwargs must be a dict",)),
+    ],
+)
+def test_register_task_refuses_what_would_break_later(call, error_type, words):
+    """``None`` broke ``list_tasks()`` and every later unknown-task message; the others failed when the task was made."""
+    from sb3_saeir.common import registry
+
+    before = registry.list_tasks()
+    with pytest.raises(error_type) as error:
+        call(registry.register_task)
+    one_line(error, *words)
+    assert registry.list_tasks() == before
+
+
+def test_an_entry_point_that_does_not_import_is_named():
+    from sb3_saeir.common.registry import load_entry_point
+
+    with pytest.raises(ModuleNotFoundError) as error:
+        load_entry_point("no_such_module_here:Game")
+    one_line(error, "entry point 'no_such_module_here:Game': no module 'no_such_module_here'")
+    with pytest.raises(AttributeError) as error:
+        load_entry_point("sb3_saeir.envs:NoSuchGame")
+    one_line(error, "module 'sb3_saeir.envs' has no 'NoSuchGame'")
+
+
+def test_callback_helpers_check_their_arguments(env, tiny_kwargs):
+    from stable_baselines3.common.callbacks import CheckpointCallback
+
+    from sb3_saeir.common.callbacks import BudgetEstimate, EveryAgentSteps
+
+    with pytest.raises(TypeError) as error:
+        EveryAgentSteps(None, 10)  # failed at learn: 'NoneType' object has no attribute 'init_callback'
+    one_line(error, "EveryAgentSteps: callback=None must be an SB3 BaseCallback")
+    with pytest.raises(ValueError) as error:
+        BudgetEstimate("x")  # failed after the first rollout: Cannot specify ',' with 's'
+    one_line(error, "BudgetEstimate: total_timesteps='x'")
+    every = EveryAgentSteps(CheckpointCallback(1, "unused"), np.int64(10))  # NumPy ints, as elsewhere
+    assert every.frequency == 10 and type(every.frequency) is int
+
+
+def test_experiment_of_an_unknown_task_is_refused_when_made():
+    from sb3_saeir.experiment import Experiment
+
+    with pytest.raises(KeyError) as error:
+        Experiment("mappo", "nope-task")  # accepted; the KeyError came at build()
+    assert "Unknown task 'nope-task'. Registered tasks:" in str(error.value)

@@ -80,8 +80,11 @@ class EveryAgentSteps(BaseCallback):
 
     def __init__(self, callback: BaseCallback, frequency: int) -> None:
         super().__init__()
-        if isinstance(frequency, bool) or not isinstance(frequency, int) or frequency < 1:
+        if not isinstance(callback, BaseCallback):
+            raise TypeError(f"EveryAgentSteps: callback={callback!r} must be an SB3 BaseCallback (such as EvalCallback).")
+        if isinstance(frequency, (bool, np.bool_)) or not isinstance(frequency, (int, np.integer)) or frequency < 1:
             raise ValueError(f"frequency must be a positive number of agent-steps, got {frequency!r}.")
+        frequency = int(frequency)
         self.callback = callback
         self.frequency = frequency
         self.last = 0
@@ -107,7 +110,15 @@ class BudgetEstimate(BaseCallback):
 
     def __init__(self, total_timesteps: int) -> None:
         super().__init__()
-        self.total_timesteps = total_timesteps
+        if (
+            isinstance(total_timesteps, (bool, np.bool_))
+            or not isinstance(total_timesteps, (int, np.integer))
+            or total_timesteps < 1
+        ):
+            raise ValueError(
+                f"BudgetEstimate: total_timesteps={total_timesteps!r} must be the run's budget, a whole number >= 1."
+            )
+        self.total_timesteps = int(total_timesteps)
         self.start = 0.0
         self.start_steps = 0
         self.printed = False

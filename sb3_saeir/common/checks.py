@@ -299,10 +299,13 @@ def check_intrinsic_reward(
     :param intrinsic_kwargs: ``intrinsic_kwargs`` argument
     """
     if intrinsic_reward is None:
-        if intrinsic_kwargs:
+        given = {"intrinsic_coef": intrinsic_coef, "intrinsic_kwargs": intrinsic_kwargs or None}
+        given = {name: value for name, value in given.items() if value is not None}
+        if given:
+            named = " and ".join(f"{name}={value!r}" for name, value in given.items())
             raise ValueError(
-                f"{algo_name}: intrinsic_kwargs={intrinsic_kwargs!r} given with intrinsic_reward=None would be ignored; "
-                f"set intrinsic_reward (one of {sorted(INTRINSIC_REWARDS)}) or remove intrinsic_kwargs."
+                f"{algo_name}: {named} given with intrinsic_reward=None would be ignored; set intrinsic_reward (one of "
+                f"{sorted(INTRINSIC_REWARDS)}) or remove {' and '.join(given)}."
             )
         return None
     if not isinstance(intrinsic_reward, str) or intrinsic_reward not in INTRINSIC_REWARDS:
@@ -401,10 +404,10 @@ def check_save_path(algo_name: str, path: Any) -> None:
     :param algo_name: class name for the message
     :param path: the ``path`` argument of ``save``
     """
-    if path is None:
-        raise TypeError(f"{algo_name}.save: path=None; pass a file path (such as 'model.zip') or a binary file object.")
     if not isinstance(path, (str, os.PathLike)):
-        return
+        if hasattr(path, "write"):  # a file object: SB3 writes to it
+            return
+        raise TypeError(f"{algo_name}.save: path={path!r}; pass a file path (such as 'model.zip') or a binary file object.")
     if str(path) in ("", "."):
         raise ValueError(f"{algo_name}.save: {str(path)!r} is not a file name; pass e.g. 'model.zip'.")
     target = pathlib.Path(path)

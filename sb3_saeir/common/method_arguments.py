@@ -5,12 +5,14 @@ argument is one line naming it and what it must be, before SB3 or torch fail on 
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_saeir.common.checks import ParameterNamesError
+from sb3_saeir.common.utils import check_bool
 
 
 class ParameterShapesError(ParameterNamesError):
@@ -78,3 +80,53 @@ def check_parameter_shapes(owner: str, params: dict[str, Any], model: Any) -> No
             "a model built with the same network settings (policy_kwargs) and env.",
             f"size mismatch: {shown}",
         )
+
+
+def check_learn_options(owner: str, env: Any, tb_log_name: Any, reset_num_timesteps: Any, progress_bar: Any) -> None:
+    """Refuse ``learn`` options SB3 misreads: a model without an env (loaded without ``env=``: SB3's empty
+    ``AssertionError``), a ``tb_log_name`` that is not a folder name (``None`` failed in ``os.path``; a path wrote
+    outside ``tensorboard_log``), and ``reset_num_timesteps`` / ``progress_bar`` that are not bools (``"no"`` was
+    read as True).
+
+    :param owner: who checks, for the message (``"MAPPO.learn"``)
+    :param env: the model's env
+    :param tb_log_name: the ``tb_log_name`` argument
+    :param reset_num_timesteps: the ``reset_num_timesteps`` argument
+    :param progress_bar: the ``progress_bar`` argument
+    """
+    if env is None:
+        raise ValueError(
+            f"{owner}: the model has no env to train on (loaded without env=?); pass env= to load, or call "
+            "model.set_env(env) first."
+        )
+    check_bool(owner, reset_num_timesteps=reset_num_timesteps, progress_bar=progress_bar)
+    separators = {"/", os.sep} | ({os.altsep} if os.altsep else set())
+    if not isinstance(tb_log_name, str) or tb_log_name in ("", ".", "..") or any(sep in tb_log_name for sep in separators):
+        raise ValueError(
+            f"{owner}: tb_log_name={tb_log_name!r} must be a folder name such as 'MAPPO' (no path): tensorboard writes "
+            "into <tensorboard_log>/<tb_log_name>_<N>."
+        )
+
+
+def check_custom_objects(owner: str, custom_objects: Any) -> None:
+    """Refuse ``load``'s ``custom_objects`` that are not a dict (``None`` passes).
+
+    :param owner: who checks, for the message (``"MAPPO.load"``)
+    :param custom_objects: the ``custom_objects`` argument
+    """
+    if custom_objects is not None and not isinstance(custom_objects, dict):
+        raise TypeError(
+            f"{owner}: custom_objects={custom_objects!r} must be a dict of attribute name -> value, such as "
+            "{'learning_rate': 0.0}."
+        )
+
+
+def check_parameters_file(owner: str, path: Any) -> None:
+    """For ``set_parameters`` from a file: one line for a path where there is no file (SB3 named ``<path>.zip``, the
+    second name it tries). A file object passes.
+
+    :param owner: who checks, for the message (``"MAPPO.set_parameters"``)
+    :param path: the ``load_path_or_dict`` argument
+    """
+    if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path) and not os.path.isfile(f"{os.fspath(path)}.zip"):
+        raise FileNotFoundError(f"{owner}: no such file {os.fspath(path)!r}; pass a model zip or get_parameters()'s dict.")

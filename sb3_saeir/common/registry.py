@@ -8,6 +8,7 @@ tasks and bonuses on ``import sb3_saeir`` (``docs/tasks.md``, ``docs/guide/custo
 from __future__ import annotations
 
 import importlib
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
@@ -25,7 +26,17 @@ def load_entry_point(entry_point: str) -> Callable[..., Any]:
     :return: the callable
     """
     module_name, attr = entry_point.split(":")
-    return getattr(importlib.import_module(module_name), attr)
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as error:
+        if error.name is None or not module_name.startswith(error.name):
+            raise  # a module the entry point's module imports: its own error
+        raise ModuleNotFoundError(
+            f"entry point {entry_point!r}: no module {module_name!r} ({error})", name=error.name
+        ) from None
+    if not hasattr(module, attr):
+        raise AttributeError(f"entry point {entry_point!r}: module {module_name!r} has no {attr!r}.")
+    return getattr(module, attr)
 
 
 @dataclass(frozen=True)
@@ -84,6 +95,18 @@ def register_task(
         ``(n_games, mark_truncation=False, **kwargs)``; ``None``: the games go through SuperSuit (unless the
         constructor has a ``native_vec_env`` classmethod)
     """
+    if not isinstance(task_id, str) or not task_id.strip():
+        raise TypeError(f"register_task: task_id={task_id!r} must be a non-empty string, such as 'my-task-v0'.")
+    for name, value in (("entry_point", entry_point), ("vec_env_entry_point", vec_env_entry_point)):
+        if value is not None and (not isinstance(value, str) or not re.fullmatch(r"[\w.]+:[\w.]+", value)):
+            raise ValueError(
+                f"register_task({task_id!r}): {name}={value!r} must be a string 'module:callable' (such as "
+                "'my_package.envs:parallel_env'), imported when the task is made."
+            )
+    if kwargs is not None and not isinstance(kwargs, dict):
+        raise TypeError(f"register_task({task_id!r}): kwargs must be a dict of the entry point's keywords, got {kwargs!r}.")
+    if not isinstance(main_metric, str) or not main_metric:
+        raise TypeError(f"register_task({task_id!r}): main_metric={main_metric!r} must be an episode metric's name ('r').")
     _TASKS[task_id] = TaskSpec(task_id, entry_point, dict(kwargs or {}), main_metric, description, vec_env_entry_point)
 
 

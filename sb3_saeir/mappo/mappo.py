@@ -191,6 +191,10 @@ class MAPPO(OnPolicyAlgorithm):
         check_bool(type(self).__name__, use_sde=use_sde)
         if use_sde:
             raise ValueError(f"{type(self).__name__}: use_sde=True is not supported: {GSDE_UNSUPPORTED}.")
+        if policy_kwargs is not None and not isinstance(policy_kwargs, dict):
+            raise TypeError(
+                f"{type(self).__name__}: policy_kwargs must be a dict, such as dict(hidden_size=64), got {policy_kwargs!r}."
+            )
         if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
             check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
         # built once: the callback learn() adds (docs/guide/algorithms.md)
@@ -477,6 +481,8 @@ class MAPPO(OnPolicyAlgorithm):
         checks.check_ranges(type(self).__name__, total_timesteps=total_timesteps)
         method_arguments.check_callback(f"{type(self).__name__}.learn", callback)
         method_arguments.check_log_interval(f"{type(self).__name__}.learn", log_interval)
+        owner = f"{type(self).__name__}.learn"
+        method_arguments.check_learn_options(owner, self.env, tb_log_name, reset_num_timesteps, progress_bar)
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
@@ -506,6 +512,7 @@ class MAPPO(OnPolicyAlgorithm):
         feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`). A model saved by another
         sb3-saeir version (``save`` records it) loads with a one-line warning naming both versions."""
         name = cls.__name__
+        method_arguments.check_custom_objects(f"{name}.load", custom_objects)
         overrides = {**(custom_objects or {}), **kwargs}
         checks.check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
         if "seed" in kwargs:
@@ -567,12 +574,14 @@ class MAPPO(OnPolicyAlgorithm):
             unexpected keys are skipped (torch's ``strict=False``), and the kinds of network are not compared
         :param device: device the parameters are loaded onto
         """
+        owner = f"{type(self).__name__}.set_parameters"
+        check_bool(owner, exact_match=exact_match)
         if isinstance(load_path_or_dict, dict):
             params = load_path_or_dict
         else:
+            method_arguments.check_parameters_file(owner, load_path_or_dict)
             _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
         saved_policy = params.get("policy")
-        owner = f"{type(self).__name__}.set_parameters"
         if exact_match and getattr(self, "policy", None) is not None:
             if isinstance(saved_policy, dict):
                 checks.check_network_kind(owner, saved_policy, self.policy)
@@ -615,6 +624,9 @@ class MAPPO(OnPolicyAlgorithm):
         return [*super()._excluded_save_params(), "_last_states", "_intrinsic_rewards", "_bonus", "compile"]
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        if env is None:
+            raise ValueError(f"{type(self).__name__}.set_env: env=None; pass a multi-agent vec env (make_multiagent_vec_env).")
+        checks.check_env_argument(f"{type(self).__name__}.set_env", env)
         vec_env = env if isinstance(env, VecEnv) else self._wrap_env(env, self.verbose)  # type: ignore[arg-type]
         checks.check_n_agents(type(self).__name__, vec_env, self.n_agents)
         super().set_env(env, force_reset)

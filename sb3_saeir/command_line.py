@@ -97,6 +97,12 @@ def check_folder(option: str, folder: str | os.PathLike | None) -> None:
     path = Path(folder)
     if path.exists() and not path.is_dir():
         raise ConfigError(f"{option} {path} is a file, not a folder.")
+    dangling = next((part for part in (path, *path.parents) if part.is_symlink() and not part.exists()), None)
+    if dangling is not None:  # mkdir failed on it with "[Errno 17] File exists"
+        raise ConfigError(
+            f"{option} {path}: {dangling} is a link to {os.readlink(dangling)}, which does not exist; make that folder "
+            "or give another one."
+        )
     problem = unwritable_folder(path)
     if problem:
         raise ConfigError(f"{option} {path}: {problem}; give a folder you can write.")
@@ -200,6 +206,9 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     if args.task not in list_tasks():
         raise ConfigError(f"unknown task {args.task!r}; valid choices: {', '.join(list_tasks())}.")
     conf_file = args.conf_file or config_path(args.algo)
+    if Path(conf_file).is_dir():
+        example = Path(conf_file) / f"{args.algo}.yml"
+        raise ConfigError(f"config file {conf_file} is a folder; give a YAML file such as {example}.")
     if not Path(conf_file).is_file():
         raise ConfigError(f"config file {conf_file} does not exist.")
     try:

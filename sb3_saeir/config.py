@@ -249,6 +249,8 @@ def load_hyperparams(algo: str, task: str, conf_file: str | os.PathLike | None =
             raise ConfigError(f"{path}: {error}") from error
     if not isinstance(entries, dict) or not all(isinstance(entry, dict) for entry in entries.values()):
         raise ConfigError(f"{path} must map task ids to dicts of hyperparameters (rl-zoo's layout).")
+    if not entries:
+        raise ConfigError(f"{path} is empty: it must map task ids to dicts of hyperparameters (rl-zoo's layout).")
     if task not in entries:
         raise KeyError(f"{path} has no entry for task {task!r}. Entries: {', '.join(sorted(entries))}.")
     return dict(entries[task])

@@ -335,7 +335,7 @@ def numbered_paths(folder: str | Path, prefix: str, suffix: str = "") -> dict[in
     found = {}
     for path in Path(folder).glob(f"{prefix}*{suffix}"):
         number = path.name[len(prefix) : len(path.name) - len(suffix)]
-        if number.isdigit():
+        if number.isascii() and number.isdigit():  # "²" is a digit to str.isdigit, not to int()
             found[int(number)] = path
     return found
 

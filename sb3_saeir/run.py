@@ -250,6 +250,8 @@ class Run:
             )
         self.stored = stored
         self.extended_from = extended_budget(stored, self.spec.n_timesteps)
+        if self.extended_from is not None:
+            read_done_file(self.folder)  # a damaged one is refused here, before anything is written
         warn_other_version(self.folder, stored)
 
     def check_resumable(self, stored: dict[str, Any]) -> None:
@@ -395,7 +397,7 @@ class Run:
             self.target_timesteps = resume.total_timesteps(self.spec.n_timesteps)
         else:
             self.target_timesteps = (model.num_timesteps if self.continue_model else 0) + self.spec.n_timesteps
-        self.clock = SegmentClock(self.folder / SEGMENTS_FILE, done_steps or 0)
+        self.clock = SegmentClock(self.folder / SEGMENTS_FILE, done_steps or 0, self.log)
         self.watch = RunFolderWatch(self.folder)
         rollout = int(getattr(model, "n_steps", 1)) * experiment.env.num_envs
         expected_rows = state.get("progress_rows") if state is not None else None

@@ -241,7 +241,36 @@ def read_spec_file(folder: Path) -> dict[str, Any] | None:
         raise ConfigError(f"{path} is damaged (not valid JSON: {error}); restore it from a copy.") from None
     if not isinstance(record, dict):
         raise ConfigError(f"{path} is damaged (not a JSON object); restore it from a copy.")
+    for key, (valid, what) in SPEC_FIELDS.items():
+        if key in record and not valid(record[key]):
+            raise ConfigError(
+                f"{path} is damaged ({key} is {_show(record[key])}, not {what}); restore it from a copy, or write it "
+                "again with the run's own values."
+            )
     return record
+
+
+def _whole(low: int) -> Callable[[Any], bool]:
+    """Whether a record's value is a whole number >= ``low`` (not a bool)."""
+    return lambda value: isinstance(value, int) and not isinstance(value, bool) and value >= low
+
+
+# What each field of spec.json must be, where it is present (an older record lacks some): checked when it is read,
+# so that a damaged field is named instead of compared, trusted or failing in the code that uses it.
+SPEC_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
+    "algo": (lambda value: isinstance(value, str), "a method name"),
+    "task": (lambda value: isinstance(value, str), "a task id"),
+    "n_timesteps": (_whole(1), "a whole number of agent-steps >= 1"),
+    "n_games": (lambda value: value is None or _whole(1)(value), "a whole number >= 1 or null"),
+    "eval_freq": (_whole(0), "a whole number >= 0"),
+    "eval_episodes": (_whole(1), "a whole number >= 1"),
+    "params": (lambda value: isinstance(value, dict), "an object"),
+    "config": (lambda value: isinstance(value, dict), "an object"),
+    "options": (lambda value: isinstance(value, dict), "an object"),
+    "game_kwargs": (lambda value: isinstance(value, dict), "an object"),
+    "extensions": (lambda value: isinstance(value, list) and all(isinstance(e, dict) for e in value), "a list of objects"),
+    "version": (lambda value: isinstance(value, str), "a version string"),
+}
 
 
 def write_spec_file(folder: Path, record: dict[str, Any]) -> None:
@@ -273,9 +302,28 @@ def done_record(wall_s: float, segments: int, timesteps: int, model_start: int =
 
 
 def read_done_file(folder: Path) -> dict[str, Any] | None:
-    """A run folder's ``done.json`` (``None``: the run has not finished)."""
+    """A run folder's ``done.json`` (``None``: the run has not finished).
+
+    :raises ~sb3_saeir.config.ConfigError: when it is damaged (not a JSON object with ``wall_s``, ``segments`` and
+        ``timesteps`` numbers)
+    """
     path = folder / DONE_FILE
-    return json.loads(path.read_text()) if path.is_file() else None
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        record = None
+    fields_ok = isinstance(record, dict) and all(
+        isinstance(record.get(key), (int, float)) and not isinstance(record.get(key), bool)
+        for key in ("wall_s", "segments", "timesteps")
+    )
+    if not fields_ok:
+        raise ConfigError(
+            f"{path} is damaged (not a JSON object with wall_s, segments and timesteps); delete it: the run's final "
+            "model and checkpoints say where it goes on, and the run writes it again when it reaches its budget."
+        )
+    return record
 
 
 def write_done_file(folder: Path, record: dict[str, Any]) -> None:
@@ -335,6 +383,17 @@ def split_rows(
     :param log: the run's log
     """
     old_rows = read_rows(path)
+    readable = [
+        row for row in old_rows if isinstance(row.get("timesteps"), int) and None not in row and None not in row.values()
+    ]
+    if len(readable) < len(old_rows):
+        copy = keep_damaged(path)
+        log(
+            f"{len(old_rows) - len(readable)} row(s) of {path.name} cannot be read (cut short or edited): left out, the "
+            f"file as it was kept as {copy.name}"
+        )
+        old_rows = readable
+        write_rows(path, old_rows)
     rows = [row for row in old_rows if done_steps is not None and row["timesteps"] <= done_steps]
     lost = {int(row["timesteps"]): row for row in old_rows if done_steps is None or row["timesteps"] > done_steps}
     if lost:

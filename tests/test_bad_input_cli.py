@@ -670,3 +670,65 @@ def test_train_resume_of_a_benchmark_run_names_the_benchmark_command(tmp_path, c
     assert "python -m sb3_saeir.benchmark --algos mappo --tasks cn-sparse-n3 --seeds 2 -n 60 --n-games 2" in line
     assert f"'n_steps:10' --out {tmp_path / 'bench'}" in line and "--eval-freq" in line
     assert snapshot(folder) == before
+
+
+# ------------------------------------------------------------------------------------------------ round 6 (issue 67)
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--double-buffered", "on"], "(double_buffered=True) cannot sample this env: its games run in one process"),
+        (["-conf", "."], "config file . is a folder; give a YAML file such as saeir_ppo.yml"),
+        (["-conf", "empty.yml"], "empty.yml is empty: it must map task ids to dicts of hyperparameters"),
+    ],
+)
+def test_round_6_train_refusals(root, capsys, extra, message):
+    """Double buffering without workers failed at the first rollout, its run folder written; a folder as -conf was
+    "does not exist", an empty file "has no entry ... Entries: ."."""
+    (root / "empty.yml").write_text("")
+    assert_refused(train_main, [*TRAIN, "-f", "logs", *extra], message, capsys, root)
+
+
+def test_a_dangling_link_as_log_folder_is_named(tmp_path, capsys):
+    """``-f`` a link to a folder that does not exist: "[Errno 17] File exists" before."""
+    os.symlink(tmp_path / "nowhere", tmp_path / "dangling")
+    assert run(train_main, [*TRAIN, "-f", str(tmp_path / "dangling")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"is a link to {tmp_path / 'nowhere'}, which does not exist" in line
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["dangling"]
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["-n", "0"], "-n 0: a budget is a number of agent-steps >= 1"),
+        (["--eval-episodes", "0"], "--eval-episodes 0: an evaluation plays >= 1 game episode"),
+    ],
+)
+def test_round_6_zoo_refusals(root, capsys, extra, message):
+    """``-n 0`` trained the config's whole budget; ``--eval-episodes 0`` failed at the first evaluation."""
+    argv = ["train", "--algo", "mappo", "--env", TASK, "-f", "logs", "-params", "n_envs:2", "n_steps:10"]
+    assert_refused(zoo_main, [*argv, *extra], message, capsys, root)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--algos", "mappo", "mappo"], "--algos names ['mappo'] more than once"),
+        (["--tasks", TASK, TASK], f"--tasks names ['{TASK}'] more than once"),
+        (["--seeds", "-1"], "--seeds '-1': -1 is not a seed; seeds are 0 .. 2**32 - 1"),
+        (["--seeds", "4294967296"], "4294967296 is not a seed"),
+    ],
+)
+def test_round_6_benchmark_refusals(root, capsys, extra, message):
+    """Repeated methods or tasks listed each run twice (with --jobs 2, a job refused by its own driver's lock); a
+    negative seed was named as make_multiagent_vec_env's argument."""
+    argv = ["--algos", "mappo", "--seeds", "1", "-n", "100", "--eval-freq", "50", "--n-games", "2", "--out", "bench"]
+    assert_refused(benchmark_main, [*argv, *extra], message, capsys, root)
+
+
+def test_a_run_folder_numbered_with_a_non_ascii_digit_is_left_out(root, capsys):
+    """``cn-sparse-n3_²`` (a digit to ``str.isdigit``, not to ``int``) stopped every new run in the log folder."""
+    (root / "logs" / "mappo" / f"{TASK}_²").mkdir(parents=True)
+    argv = ["--algo", "mappo", "--n-games", "2", "-n", "60", "--eval-freq", "0", "--verbose", "0", "-params", "n_steps:10"]
+    assert run(train_main, [*argv, "-f", "logs"]) == 0
+    assert (root / "logs" / "mappo" / f"{TASK}_1" / "done.json").is_file()

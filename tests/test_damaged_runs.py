@@ -425,3 +425,73 @@ def test_a_damaged_benchmark_spec_file_is_named_and_nothing_written(tmp_path, ca
     assert status == 2 and "Traceback" not in err, err
     assert f"{path} is damaged ({problem}" in err and "its settings are unknown" in err, err
     assert snapshot(out) == before
+
+
+# ---------------------------------------------------------------------------------------------------- round 6 (issue 67)
+def edit_spec(folder, **fields):
+    spec = json.loads((folder / "spec.json").read_text())
+    spec.update(fields)
+    (folder / "spec.json").write_text(json.dumps(spec))
+
+
+@pytest.mark.parametrize(
+    "fields, named",
+    [
+        ({"n_timesteps": "900"}, 'n_timesteps is "900", not a whole number of agent-steps >= 1'),
+        ({"n_timesteps": -5}, "n_timesteps is -5, not a whole number of agent-steps >= 1"),
+        ({"options": [1]}, "options is [1], not an object"),
+        ({"config": "x"}, 'config is "x", not an object'),
+        ({"extensions": 5}, "extensions is 5, not a list of objects"),
+        ({"extensions": {"a": 1}}, 'extensions is {"a": 1}, not a list of objects'),
+    ],
+)
+def test_a_damaged_field_of_spec_json_is_named(run, capsys, fields, named):
+    """A budget as a string sent the user round between two refusals; -5 was trained longer from; the others were
+    raw TypeErrors or silently rewritten."""
+    edit_spec(run, **fields)
+    before = snapshot(run)
+    status, _, err = resume(run, capsys)
+    assert status == 2
+    (line,) = err.strip().splitlines()
+    assert f"{run / 'spec.json'} is damaged ({named}); restore it from a copy" in line
+    assert snapshot(run) == before
+
+
+@pytest.mark.parametrize("text", ["garb{", "[1, 2]", ""])
+def test_a_damaged_done_json_is_refused_before_training_longer(finished_tiny_run, tmp_path, capsys, text):
+    """A raw JSONDecodeError (after the shorter run's model was copied), or ``[1, 2]`` recorded as the shorter run."""
+    folder = unfinished_copy(finished_tiny_run, tmp_path / "logs")
+    shutil.copy2(finished_tiny_run / f"{TASK}.zip", folder / f"{TASK}.zip")
+    (folder / "done.json").write_text(text)
+    before = snapshot(folder)
+    longer = [arg if arg != "900" else "1200" for arg in argv(tmp_path / "logs", "--resume")]
+    assert train_main(longer) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"{folder / 'done.json'} is damaged" in line and "delete it" in line
+    assert snapshot(folder) == before
+
+
+def test_a_damaged_segments_json_is_kept_aside_and_the_run_goes_on(run, finished_tiny_run, capsys):
+    """A raw JSONDecodeError, after resume.log had said the run resumed."""
+    (run / "segments.json").write_text("xx[")
+    status, _, err = resume(run, capsys)
+    assert status == 0, err
+    assert [path.name for path in run.glob("segments.json.damaged-*")] and json.loads((run / "segments.json").read_text())
+    assert "segments.json is damaged: kept as segments.json.damaged-" in (run / "resume.log").read_text()
+    assert_same_parameters(run / f"{TASK}.zip", finished_tiny_run / f"{TASK}.zip")
+
+
+@pytest.mark.parametrize("damage", ["garbage", "cut"])
+def test_unreadable_evaluation_rows_are_left_out_and_the_run_goes_on(run, capsys, damage):
+    """A raw KeyError or TypeError at every resume."""
+    path = run / "evaluations.csv"
+    if damage == "garbage":
+        path.write_text("a,b\n1,2\n")
+    else:
+        lines = path.read_text().splitlines()
+        path.write_text("\n".join([*lines[:-1], lines[-1][: len(lines[-1]) // 3]]) + "\n")
+    status, _, err = resume(run, capsys)
+    assert status == 0, err
+    assert [p.name for p in run.glob("evaluations.csv.damaged-*")]
+    assert "row(s) of evaluations.csv cannot be read" in (run / "resume.log").read_text()
+    assert all(row["timesteps"].isdigit() for row in read_rows(path))

@@ -136,6 +136,10 @@ def _check_arguments(args: argparse.Namespace) -> str | None:
     """The first bad argument, as a message (``None``: all good)."""
     from sb3_saeir.envs import list_tasks
 
+    for flag, names in (("--algos", args.algos), ("--tasks", args.tasks)):
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:  # each run twice in the table, and two jobs on one run folder
+            return f"{flag} names {repeated} more than once: give each once"
     unknown = [algo for algo in args.algos if algo not in ALGOS]
     if unknown:
         return f"unknown methods {unknown}; valid: {', '.join(sorted(ALGOS))}"

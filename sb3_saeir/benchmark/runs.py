@@ -12,6 +12,7 @@ from typing import Any
 
 from sb3_saeir.common.atomic import unused_name
 from sb3_saeir.common.run_files import SPEC_FILE
+from sb3_saeir.common.utils import MAX_SEED
 from sb3_saeir.config import ConfigError
 from sb3_saeir.run_record import RunSpec, read_spec_file, spec_differences, write_spec_file
 
@@ -34,6 +35,9 @@ def parse_seeds(text: str) -> list[int]:
         seeds.extend(range(low, high + 1))
     if not seeds:
         raise ConfigError(f"--seeds {text!r} gives no seed; e.g. --seeds 1-3 or --seeds 1,3,7.")
+    outside = [seed for seed in seeds if not 0 <= seed <= MAX_SEED]
+    if outside:
+        raise ConfigError(f"--seeds {text!r}: {outside[0]} is not a seed; seeds are 0 .. 2**32 - 1 ({MAX_SEED}).")
     repeated = sorted({seed for seed in seeds if seeds.count(seed) > 1})
     if repeated:
         raise ConfigError(f"--seeds {text!r} gives seed(s) {repeated} more than once: give each seed once.")

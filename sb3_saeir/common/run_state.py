@@ -559,16 +559,35 @@ class SegmentClock:
 
     :param path: the run's ``segments.json``
     :param resumed_at: agent-steps this segment starts from
+    :param log: where a damaged ``segments.json`` is told (it is kept aside and the record starts again)
     """
 
-    def __init__(self, path: Path, resumed_at: int) -> None:
+    def __init__(self, path: Path, resumed_at: int, log: Callable[[str], None] | None = None) -> None:
         self.path = path
-        self.segments: list[dict[str, Any]] = json.loads(path.read_text()) if path.is_file() else []
+        self.segments: list[dict[str, Any]] = self._read(log)
         self.previous_s = float(sum(segment["wall_s"] for segment in self.segments))
         self.start = time.time()
         segment = {"started": utc_stamp(), "resumed_at": resumed_at, "reached": resumed_at, "wall_s": 0.0}
         self.segments.append({**segment, "version": PACKAGE_VERSION})  # which version trained each segment
         self.tick(resumed_at)
+
+    def _read(self, log: Callable[[str], None] | None) -> list[dict[str, Any]]:
+        """The recorded segments; a damaged file (not a JSON list of segments with their ``wall_s``) is kept aside as
+        ``segments.json.damaged-<UTC time>`` and the record starts again with this segment."""
+        if not self.path.is_file():
+            return []
+        try:
+            segments = json.loads(self.path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            segments = None
+        if isinstance(segments, list) and all(
+            isinstance(item, dict) and isinstance(item.get("wall_s"), (int, float)) for item in segments
+        ):
+            return segments
+        copy = keep_damaged(self.path)
+        if log is not None:
+            log(f"{self.path.name} is damaged: kept as {copy.name}; the wall-time record starts again at this segment")
+        return []
 
     def tick(self, steps: int) -> None:
         """Record this segment's wall time so far and the agent-steps it reached.

@@ -267,6 +267,7 @@ class MAPPO(OnPolicyAlgorithm):
             raise ValueError(f"{type(self).__name__} needs an env (make_multiagent_vec_env) or a loaded n_agents.")
         if self.env is not None:  # load(path, env) of a model onto games of another size
             checks.check_n_agents(type(self).__name__, self.env, self.n_agents)
+            use_double_buffering(type(self).__name__, self.double_buffered, self.env)  # refused here, not at a rollout
         self._setup_lr_schedule()
         self.set_random_seed(self.seed)
         self.policy_kwargs = {**self.policy_kwargs, "n_agents": self.n_agents, "normalize_values": self.normalize_values}

@@ -126,11 +126,15 @@ def check_train_args(argv: Sequence[str]) -> None:
             (["-tb", "--tensorboard-log"], {"default": ""}),
             (["-params", "--hyperparams"], {"nargs": "+", "action": "append", "default": []}),
             (["--seed"], {"default": None}),
+            (["-n", "--n-timesteps"], {"default": None}),
+            (["--eval-freq"], {"default": None}),
+            (["--eval-episodes"], {"default": None}),
         ]
     )
     args = parser.parse_known_args(list(argv))[0]
     if not is_package_env(args.env):
         return
+    check_zoo_counts(args.n_timesteps, args.eval_freq, args.eval_episodes)
     if args.seed is not None and args.seed.lstrip("-").isdigit():  # not a whole number: rl-zoo3's parser refuses it
         check_seed_option(int(args.seed), draw=-1)  # numpy's seeding would fail on it later, after the folder exists
     check_folder("-f/--log-folder", args.log_folder)
@@ -140,6 +144,29 @@ def check_train_args(argv: Sequence[str]) -> None:
     items = [item for group in args.hyperparams for item in group if item.split(":")[0] == "n_envs"]
     entry = _load_zoo_entry(args.conf_file, args.env) if args.conf_file is not None else None
     check_n_envs(parse_params(items[-1:])["n_envs"] if items else (entry or {}).get("n_envs"))
+
+
+def check_zoo_counts(n_timesteps: str | None, eval_freq: str | None, eval_episodes: str | None) -> None:
+    """Refuse, before rl-zoo3 starts, a ``-n`` below 1 (rl-zoo3 reads ``-n 0`` as "not given" and trains the config's
+    whole budget) and ``--eval-episodes`` below 1 with evaluations on (the run failed at its first evaluation, its
+    folder written). Values rl-zoo3's own parser refuses (not whole numbers) are left to it.
+
+    :param n_timesteps: ``-n`` as given (``None``: not given)
+    :param eval_freq: ``--eval-freq`` as given
+    :param eval_episodes: ``--eval-episodes`` as given
+    """
+
+    def whole(text: str | None) -> int | None:
+        return int(text) if text is not None and text.lstrip("-").isascii() and text.lstrip("-").isdigit() else None
+
+    budget, frequency, episodes = whole(n_timesteps), whole(eval_freq), whole(eval_episodes)
+    if budget is not None and budget < 1:
+        raise ConfigError(
+            f"-n {n_timesteps}: a budget is a number of agent-steps >= 1 (rl-zoo3 reads -n <= 0 as not given and would "
+            "train the config's n_timesteps); leave -n out for the config's budget."
+        )
+    if episodes is not None and episodes < 1 and (frequency is None or frequency > 0):
+        raise ConfigError(f"--eval-episodes {eval_episodes}: an evaluation plays >= 1 game episode (--eval-freq 0: none).")
 
 
 def check_zoo_param(item: str) -> None:

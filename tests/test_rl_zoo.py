@@ -268,3 +268,18 @@ def test_zoo_train_stopped_by_a_signal_says_so_and_exits_with_its_status(tmp_pat
     assert not (folder / "done.json").exists()
     resumed = run_launcher(*RESUMED, "-f", str(tmp_path), "--resume")
     assert f"Resuming {folder}" in resumed.stdout and (folder / "done.json").is_file()
+
+
+def test_zoo_reads_a_conf_file_with_the_package_yaml_loader(tmp_path):
+    """``learning_rate: 5e-4`` without ``!!float`` is a number (``yaml.safe_load``, rl-zoo3's loader, reads a
+    string): rl-zoo3's ``read_hyperparameters`` runs with the package's loader."""
+    entry = yaml.safe_load((REPO / "zoo_configs" / "mappo.yml").read_text())[TASK]
+    text = yaml.safe_dump({TASK: {**entry, "learning_rate": "LR"}}).replace("'LR'", "5e-4").replace("LR", "5e-4")
+    (tmp_path / "conf.yml").write_text(text)
+    run_launcher(
+        "train", "--algo", "mappo", "--env", TASK, "--conf-file", str(tmp_path / "conf.yml"), "-f", str(tmp_path),
+        "--num-threads", "1", "--device", "cpu", "--seed", "0", "-n", "60", "-params", "n_envs:2", "n_steps:10",
+        "--eval-freq", "0",
+    )  # fmt: skip
+    model = ALGOS["mappo"].load(tmp_path / "mappo" / f"{TASK}_1" / f"{TASK}.zip", device="cpu")
+    assert model.lr_schedule(1.0) == 5e-4

@@ -7,11 +7,10 @@ from __future__ import annotations
 
 import shutil
 import sys
-from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from pprint import pprint
+from types import SimpleNamespace
 from typing import Any
 
 from rl_zoo3.exp_manager import ExperimentManager
@@ -75,35 +74,18 @@ class RunExperimentManager(ExperimentManager):
             self.seed = int((zoo_train.record or {})["seed"])
 
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
-        """rl-zoo3's (2.9.2) ``read_hyperparameters``, but a YAML file is read with
-        :func:`~sb3_saeir.config.load_yaml` rather than ``yaml.safe_load`` (which leaves ``5e-4`` a string)."""
-        if not self.config.endswith((".yml", ".yaml")):
+        """rl-zoo3's ``read_hyperparameters``, with a YAML file read by :func:`~sb3_saeir.config.load_yaml` instead of
+        ``yaml.safe_load`` (which leaves ``5e-4`` a string and takes a key given twice): rl-zoo3 has no option for
+        its loader, so the ``yaml`` name its module reads is bound, for this call only, to one whose ``safe_load`` is
+        the package's (rl-zoo3's module is put back after it)."""
+        import rl_zoo3.exp_manager
+
+        rl_yaml = rl_zoo3.exp_manager.yaml
+        rl_zoo3.exp_manager.yaml = SimpleNamespace(safe_load=load_yaml)  # type: ignore[assignment]
+        try:
             return super().read_hyperparameters()
-        print(f"Loading hyperparameters from: {self.config}")
-        with open(self.config) as file:
-            hyperparams_dict = load_yaml(file)
-        if self.env_name.gym_id in list(hyperparams_dict.keys()):
-            hyperparams = hyperparams_dict[self.env_name.gym_id]
-        elif self._is_atari:
-            hyperparams = hyperparams_dict["atari"]
-        elif "default" in hyperparams_dict:
-            print("Using 'default' hyperparameters")
-            hyperparams = hyperparams_dict["default"]
-        else:
-            raise ValueError(f"Hyperparameters not found for {self.algo}-{self.env_name.gym_id} in {self.config}")
-        if self.storage and self.study_name and self.trial_id:
-            print("Loading from Optuna study...")
-            hyperparams.update(self.load_trial(self.storage, self.study_name, self.trial_id))
-        if self.custom_hyperparams is not None:
-            hyperparams.update(self.custom_hyperparams)
-        if "env_kwargs" in hyperparams and self.env_kwargs:
-            hyperparams.update({"env_kwargs": self.env_kwargs})
-            if self._eval_env_kwargs_args is None:
-                self.eval_env_kwargs = hyperparams["env_kwargs"]
-        saved_hyperparams = OrderedDict([(key, hyperparams[key]) for key in sorted(hyperparams.keys())])
-        print("Default hyperparameters for environment (ones being tuned will be overridden):")
-        pprint(saved_hyperparams)
-        return hyperparams, saved_hyperparams
+        finally:
+            rl_zoo3.exp_manager.yaml = rl_yaml
 
     def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
         """rl-zoo3's setup (config, env, model) in the run's folder, holding its lock; on a package task a failure

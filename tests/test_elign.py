@@ -5,9 +5,7 @@ import numpy as np
 import pytest
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.logger import configure
 
-from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from sb3_saeir.intrinsic.elign import ElignCallback, elign_team_bonus, navigation_visibility
 
@@ -149,27 +147,3 @@ def test_radius_needs_positions():
     with pytest.raises(ValueError, match="position_fn is needed when obs_radius is set"):
         ElignCallback(obs_radius=0.5, position_fn=None)
     ElignCallback(obs_radius=None, position_fn=None)
-
-
-def test_saeir_ppo_run_adds_coef_times_bonus(tmp_path):
-    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
-    model = SAEIR_PPO(
-        "MSHGPolicy", env, n_steps=10, n_epochs=1, intrinsic_reward=None, policy_kwargs=dict(hidden_size=8), seed=0
-    )
-    logger = configure(str(tmp_path), ["csv"])
-    model.set_logger(logger)
-    records = []
-    original_dump = logger.dump
-    logger.dump = lambda step=0: (records.append(dict(logger.name_to_value)), original_dump(step))
-    callback = ElignCallback(coef=0.7, obs_radius=2.0)  # a wide radius so that every agent has neighbours
-    model.learn(2 * 10 * 6, callback=callback)
-    env.close()
-
-    buffer = model.rollout_buffer
-    assert callback.last_bonus is not None and callback.last_bonus.shape == (10, 6)
-    assert np.isfinite(callback.last_bonus).all() and (callback.last_bonus < 0).any()
-    expected = np.broadcast_to(0.7 * callback.last_bonus[..., None], buffer.intrinsic_rewards.shape)
-    np.testing.assert_allclose(buffer.intrinsic_rewards, expected, rtol=1e-6)
-    np.testing.assert_array_equal(np.stack(callback.next_observations)[:-1], buffer.observations[1:])
-    for key in ("rollout/elign_reward_mean", "rollout/elign_neighbour_fraction", "train/elign_model_loss"):
-        assert key in records[-1], key

@@ -3,9 +3,7 @@
 import numpy as np
 import pytest
 import torch as th
-from stable_baselines3.common.logger import configure
 
-from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.intrinsic.base import true_next_observations
 from sb3_saeir.intrinsic.rnd import RNDCallback
 
@@ -105,28 +103,3 @@ def test_true_next_observations_use_the_terminal_observation():
     result = true_next_observations(new_obs, np.array([False, True]), infos)
     np.testing.assert_array_equal(result, [[1.0, 1.0], [9.0, 8.0]])
     assert new_obs[1, 0] == 2.0  # a copy
-
-
-def test_saeir_ppo_run_adds_coef_times_bonus(tmp_path):
-    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)
-    model = SAEIR_PPO(
-        "MSHGPolicy", env, n_steps=10, n_epochs=1, intrinsic_reward=None, policy_kwargs=dict(hidden_size=8), seed=0
-    )
-    logger = configure(str(tmp_path), ["csv"])
-    model.set_logger(logger)
-    records = []
-    original_dump = logger.dump
-    logger.dump = lambda step=0: (records.append(dict(logger.name_to_value)), original_dump(step))
-    callback = RNDCallback(coef=0.3)
-    model.learn(2 * 10 * 6, callback=callback)
-    env.close()
-
-    buffer = model.rollout_buffer
-    assert callback.last_bonus is not None and callback.last_bonus.shape == (10, 6)
-    assert np.isfinite(callback.last_bonus).all() and (callback.last_bonus > 0).all()
-    expected = np.broadcast_to(0.3 * callback.last_bonus[..., None], buffer.intrinsic_rewards.shape)
-    np.testing.assert_allclose(buffer.intrinsic_rewards, expected, rtol=1e-6)
-    # no game ended within the 10 steps: the recorded o'_{t+1} is the next stored observation
-    np.testing.assert_array_equal(np.stack(callback.next_observations)[:-1], buffer.observations[1:])
-    for key in ("rollout/rnd_reward_mean", "rollout/rnd_raw_reward_mean", "train/rnd_loss"):
-        assert key in records[-1], key

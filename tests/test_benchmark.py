@@ -103,6 +103,18 @@ def test_report_leaves_unfinished_runs_out_of_the_table(finished, tmp_path, caps
     assert not (copy / "table.md").exists() and (copy / "curves.png").is_file()
 
 
+def test_report_only_of_a_larger_budget_gives_no_final_values(finished, tmp_path, capsys):
+    """``--report-only -n 1000`` on runs finished at 200 agent-steps: they are not finished for that budget (their
+    200-step values were reported as the finals of 1,000)."""
+    out, argv = finished
+    copy = tmp_path / "bench"
+    shutil.copytree(out, copy)
+    larger = [arg if arg != "200" else "1000" for arg in argv]
+    assert main([*larger, "--out", str(copy), "--report-only"]) == 0
+    assert "not finished: saeir_ppo/cn-sparse-n3_s1 at 240" in capsys.readouterr().out
+    assert not (copy / "table.md").exists() and (copy / "curves.png").is_file()
+
+
 def test_report_of_fewer_runs_names_the_folders_it_leaves_out(finished, tmp_path, capsys):
     """A command with one method or seed rewrites runs.csv with its runs only, and names the folder's other runs."""
     out, argv = finished

@@ -263,7 +263,8 @@ def other_run_folders(out: Path, specs: list[RunSpec]) -> list[str]:
 
 
 def unfinished_runs(out: Path, specs: list[RunSpec], rows: list[dict[str, Any]]) -> dict[tuple[str, str, int], int]:
-    """The runs of ``specs`` with evaluation rows but no ``done.json`` (running, stopped or failed), with the
+    """The runs of ``specs`` with evaluation rows that have not finished the command's budget (running, stopped or
+    failed: no ``done.json``; or finished at a smaller budget, their last evaluation before ``-n``), with the
     agent-steps of their last evaluation.
 
     :param out: the benchmark folder
@@ -274,8 +275,9 @@ def unfinished_runs(out: Path, specs: list[RunSpec], rows: list[dict[str, Any]])
     for row in rows:
         key = (row["algo"], row["task"], int(row["seed"]))
         reached[key] = max(reached.get(key, 0), int(row["timesteps"]))
-    return {
-        (spec.algo, spec.task, spec.seed): reached[(spec.algo, spec.task, spec.seed)]
-        for spec in specs
-        if (spec.algo, spec.task, spec.seed) in reached and not (run_folder(out, spec) / DONE_FILE).is_file()
-    }
+    unfinished = {}
+    for spec in specs:
+        key = (spec.algo, spec.task, spec.seed)
+        if key in reached and (not (run_folder(out, spec) / DONE_FILE).is_file() or reached[key] < spec.n_timesteps):
+            unfinished[key] = reached[key]
+    return unfinished

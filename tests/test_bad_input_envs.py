@@ -591,3 +591,25 @@ def test_agents_names_and_reset_keywords_are_checked_when_the_env_is_made(env_fn
     with pytest.raises((TypeError, ValueError)) as excinfo:
         make_multiagent_vec_env(env_fn, n_games=2)
     assert expected in _one_line(excinfo, "possible_agents" if env_fn is not NoSeedMeetEnv else "reset")
+
+
+@pytest.mark.parametrize("task", ["cn-sparse-n3", ToyMeetEnv])
+@pytest.mark.parametrize(
+    "actions, expected",
+    [
+        (np.zeros(5, dtype=np.int64), "step: actions for 5 slots; the env has 6 slots (2 games x 3 agents)"),
+        (np.array([0, 0, 0, 0, 0, -1]), "step: slot 5 (game 1, agent 2) got the action np.int64(-1), outside"),
+        (np.array([0, 0, 7, 0, 0, 0]), "step: slot 2 (game 0, agent 2) got the action np.int64(7), outside"),
+        (np.array([0, 1.7, 0, 0, 0, 0]), "step: slot 1 (game 0, agent 1) got the action np.float64(1.7), outside"),
+    ],
+)
+def test_step_actions_are_one_per_slot_and_in_the_action_space(task, actions, expected):
+    """A wrong count was a raw reshape or SuperSuit error; -1, 7 and 1.7 reached the games (-1 moved the native
+    navigation's agents)."""
+    env = make_multiagent_vec_env(task, n_games=2, seed=0)
+    env.reset()
+    with pytest.raises(ValueError) as excinfo:
+        env.step(actions)
+    assert expected in _one_line(excinfo, "step")
+    env.step(np.zeros(6))  # whole numbers as floats: taken (SuperSuit's cast refused them)
+    env.close()

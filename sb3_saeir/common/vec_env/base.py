@@ -228,7 +228,35 @@ class GroupedVecEnv(VecEnv):
                 "step_async called while groups of games step on their own (double-buffered sampling): wait for them "
                 "and return their steps with step_wait, or call drain_groups() and reset()."
             )
-        self._step_games_async(actions, None)
+        self._step_games_async(self._checked_actions(actions), None)
+
+    def _checked_actions(self, actions: Any) -> np.ndarray:
+        """``step``'s actions as an array of one action per slot, each in the action space: a count of other than
+        ``num_envs`` was a raw reshape error, and a ``Discrete`` action outside ``0 .. n - 1`` reached the games (the
+        native navigation took -1 as a move)."""
+        actions = np.asarray(actions)
+        if actions.ndim == 0 or len(actions) != self.num_envs:
+            count = "one action" if actions.ndim == 0 else f"actions for {len(actions)} slots"
+            raise ValueError(
+                f"step: {count}; the env has {self.num_envs} slots ({self.n_games} games x {self.n_agents} agents): pass "
+                "one action per slot."
+            )
+        space = self.action_space
+        if isinstance(space, (spaces.Discrete, spaces.MultiDiscrete)):
+            high = space.n if isinstance(space, spaces.Discrete) else space.nvec
+            numbers = np.issubdtype(actions.dtype, np.number) and not np.issubdtype(actions.dtype, np.complexfloating)
+            if numbers:
+                bad = (actions != np.round(actions)) | (actions < 0) | (actions >= high)
+            else:
+                bad = np.ones(actions.shape, dtype=bool)
+            if bad.any():
+                slot = int(np.argwhere(bad)[0][0])
+                raise ValueError(
+                    f"step: slot {slot} (game {slot // self.n_agents}, agent {slot % self.n_agents}) got the action "
+                    f"{actions[slot]!r}, outside the action space {space}: actions are whole numbers 0 .. n - 1."
+                )
+            return actions.astype(np.int64, copy=False)  # 0.0, 1.0, ... as SuperSuit's int64 action arrays take them
+        return actions
 
     def step_wait(self) -> VecEnvStepReturn:
         if self._staged:

@@ -216,6 +216,18 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     except KeyError as error:
         raise ConfigError(str(error.args[0])) from error
     overrides = parse_params(args.params)
+    double_buffered = DOUBLE_BUFFERED_FLAGS[args.double_buffered] if args.double_buffered is not None else None
+    compile_on = None if getattr(args, "compile", None) is None else args.compile == "on"
+    check_params_against_flags(
+        overrides,
+        {
+            "n_envs": ("--n-games", args.n_games),
+            "n_timesteps": ("-n", args.n_timesteps),
+            "num_cpus": ("--num-cpus", args.num_cpus),
+            "double_buffered": ("--double-buffered", double_buffered),
+            "compile": ("--compile", compile_on),
+        },
+    )
     if args.n_games is not None:
         overrides["n_envs"] = args.n_games
     if args.n_timesteps is not None:
@@ -230,6 +242,19 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     resolved = {**hyperparams, **overrides}
     check_folder("tensorboard_log", resolved.get("tensorboard_log"))
     return resolved
+
+
+def check_params_against_flags(params: dict[str, Any], flags: dict[str, tuple[str, Any]]) -> None:
+    """Refuse a ``-params`` key that a flag of the command sets too, to another value (the flag won without a word,
+    and the benchmark's record kept the ``-params`` value, which did not train).
+
+    :param params: the ``-params`` overrides
+    :param flags: config key -> (the flag that sets it, its value; ``None``: not given)
+    :raises ~sb3_saeir.config.ConfigError: naming both
+    """
+    for key, (flag, value) in flags.items():
+        if value is not None and key in params and params[key] != value:
+            raise ConfigError(f"-params {key}:{params[key]!r} and {flag} {value} disagree: give it once.")
 
 
 # Values of --double-buffered -> the algorithms' double_buffered.

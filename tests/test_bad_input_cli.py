@@ -148,7 +148,9 @@ def test_bad_benchmark_seeds(root, capsys, seeds, message):
 
 
 def test_parse_seeds_still_reads_ranges_and_lists():
-    assert parse_seeds("1-3") == [1, 2, 3] and parse_seeds("1,3,7") == [1, 3, 7] and parse_seeds("-2--1,5,") == [-2, -1, 5]
+    assert parse_seeds("1-3") == [1, 2, 3] and parse_seeds("1,3,7") == [1, 3, 7] and parse_seeds("0-1,5,") == [0, 1, 5]
+    with pytest.raises(ConfigError, match="-2 is not a seed"):  # a range of negative numbers still parses, as a range
+        parse_seeds("-2--1,5")
 
 
 # ------------------------------------------------------------------------------------------------ late errors
@@ -679,6 +681,8 @@ def test_train_resume_of_a_benchmark_run_names_the_benchmark_command(tmp_path, c
         (["--double-buffered", "on"], "(double_buffered=True) cannot sample this env: its games run in one process"),
         (["-conf", "."], "config file . is a folder; give a YAML file such as saeir_ppo.yml"),
         (["-conf", "empty.yml"], "empty.yml is empty: it must map task ids to dicts of hyperparameters"),
+        (["-params", "n_envs:4"], "-params n_envs:4 and --n-games 2 disagree: give it once"),
+        (["-params", "n_timesteps:60"], "-params n_timesteps:60 and -n 100 disagree: give it once"),
     ],
 )
 def test_round_6_train_refusals(root, capsys, extra, message):
@@ -717,6 +721,8 @@ def test_round_6_zoo_refusals(root, capsys, extra, message):
         (["--tasks", TASK, TASK], f"--tasks names ['{TASK}'] more than once"),
         (["--seeds", "-1"], "--seeds '-1': -1 is not a seed; seeds are 0 .. 2**32 - 1"),
         (["--seeds", "4294967296"], "4294967296 is not a seed"),
+        (["-params", "n_envs:4"], "-params n_envs:4 and --n-games 2 disagree: give it once"),
+        (["-params", "n_timesteps:60"], "-params n_timesteps:60 and -n 100 disagree: give it once"),
     ],
 )
 def test_round_6_benchmark_refusals(root, capsys, extra, message):

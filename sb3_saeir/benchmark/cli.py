@@ -13,7 +13,7 @@ from typing import Any
 from sb3_saeir.benchmark.execution import RERUN_COPY, is_finished, run_all
 from sb3_saeir.benchmark.reports import plot_system_entropy, report
 from sb3_saeir.benchmark.runs import ensure_spec_file, move_aside, parse_seeds, run_folder, stored_spec_differences
-from sb3_saeir.command_line import OneLineParser, budget, check_folder, count
+from sb3_saeir.command_line import OneLineParser, budget, check_folder, check_params_against_flags, count
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
@@ -289,6 +289,7 @@ def _main(args: argparse.Namespace) -> int:
         return _error(problem)
     try:
         params = parse_params(args.params)
+        check_params_against_flags(params, {"n_envs": ("--n-games", args.n_games), "n_timesteps": ("-n", args.n_timesteps)})
         for algo in args.algos:
             for task in args.tasks:
                 check_hyperparams(algo, load_hyperparams(algo, task), params)

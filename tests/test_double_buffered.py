@@ -85,9 +85,8 @@ def test_option_checked():
     env = make_multiagent_vec_env(ToyMeetEnv, n_games=2, seed=0)
     with pytest.raises(ValueError, match="double_buffered must be True, False or 'auto'"):
         MAPPO("MAPPOPolicy", env, double_buffered="yes")
-    model = MAPPO("MAPPOPolicy", env, n_steps=6, double_buffered=True)
-    with pytest.raises(ValueError, match="num_cpus=2"):
-        model.learn(36)
+    with pytest.raises(ValueError, match="num_cpus=2"):  # when the model is built, not at its first rollout
+        MAPPO("MAPPOPolicy", env, n_steps=6, double_buffered=True)
     MAPPO("MAPPOPolicy", env, n_steps=6).learn(36)  # "auto": the synchronous loop for games in this process
     env.close()
 
@@ -95,9 +94,8 @@ def test_option_checked():
 def test_wrapper_that_changes_steps_refused():
     env = VecNormalize(make_multiagent_vec_env(ToyMeetEnv, n_games=2, seed=0, num_cpus=2))
     env.n_agents = 3  # VecNormalize does not forward attributes the algorithms read directly
-    model = MAPPO("MAPPOPolicy", env, n_steps=6, double_buffered=True)
     with pytest.raises(ValueError, match="VecNormalize"):
-        model.learn(36)
+        MAPPO("MAPPOPolicy", env, n_steps=6, double_buffered=True)
     env.close()
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import os
+import warnings
 from typing import Any, Literal, overload
 
 import numpy as np
@@ -44,6 +45,10 @@ class RandomMultiAgentPolicy:
             low = int(self.action_space.start)
             return low + self.rng.integers(0, int(self.action_space.n), size=n_slots), None
         return np.stack([self.action_space.sample() for _ in range(n_slots)]), None
+
+
+# Steps of an evaluation without any game episode ending after which it warns (football's longest: 3,001 steps).
+STEPS_WITHOUT_AN_END = 100_000
 
 
 @overload
@@ -90,10 +95,19 @@ def evaluate_multiagent_policy(
     observations = env.reset()
     states = None
     episode_starts = np.ones(env.num_envs, dtype=bool)
+    steps_without_an_end = 0
     while (counts < targets).any():
         actions, states = model.predict(observations, state=states, episode_start=episode_starts, deterministic=deterministic)
         observations, _, dones, infos = env.step(actions)
         episode_starts = dones
+        steps_without_an_end = 0 if dones.any() else steps_without_an_end + 1
+        if steps_without_an_end == STEPS_WITHOUT_AN_END:  # it would wait for ever on games that never end
+            warnings.warn(
+                f"{owner}: no game episode has ended in {STEPS_WITHOUT_AN_END:,} steps; the evaluation waits for "
+                f"{n_episodes} to end: do the games end (truncate them at a max_cycles)?",
+                UserWarning,
+                stacklevel=2,
+            )
         for game in range(n_games):
             episode = infos[game * n_agents].get("episode")
             if episode is not None and counts[game] < targets[game]:

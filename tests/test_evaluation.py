@@ -83,3 +83,23 @@ def test_eval_callback_folders_are_checked_when_it_is_built(env, kwargs, words):
     with pytest.raises(ValueError) as error:
         MultiAgentEvalCallback(env, **kwargs)
     assert str(error.value).startswith(f"MultiAgentEvalCallback: {words}") and "\n" not in str(error.value)
+
+
+def test_an_evaluation_on_games_that_do_not_end_warns(monkeypatch):
+    """A game without a time limit kept evaluate_multiagent_policy waiting for ever, without a word."""
+    from functools import partial
+
+    import sb3_saeir.evaluation as evaluation
+    from sb3_saeir import make_multiagent_vec_env
+    from tests.toy_envs import ToyMeetEnv
+
+    class Still:
+        def predict(self, observations, state=None, episode_start=None, deterministic=False):
+            return np.zeros(len(observations), dtype=np.int64), state
+
+    monkeypatch.setattr(evaluation, "STEPS_WITHOUT_AN_END", 20)
+    env = make_multiagent_vec_env(partial(ToyMeetEnv, max_cycles=30), n_games=1, seed=0)
+    with pytest.warns(UserWarning, match="no game episode has ended in 20 steps; the evaluation waits for 1 to end"):
+        summary = evaluation.evaluate_multiagent_policy(Still(), env, n_episodes=1)
+    assert summary["ep_len_mean"] == 30
+    env.close()

@@ -10,6 +10,7 @@ from the packaged (or given) config, its callbacks, ``learn`` and ``save``; a ru
 from __future__ import annotations
 
 import inspect
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -381,13 +382,24 @@ def claimed_run_folder(log_folder: str | Path, algo: str, task: str) -> Iterator
             break
         except FileExistsError:
             number += 1
+    # open descriptors of what this command made: while they are open, another folder at the path (the run's was
+    # deleted and the user made one) cannot take the same inode, and is left alone
+    made = {path: os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC) for path in (folder, *created)}
     try:
         yield folder
     except BaseException:
         for empty in (folder, *created):
-            with suppress(OSError):  # not empty: something was written, keep it
-                empty.rmdir()
+            with suppress(OSError):  # not empty (something was written: keep it), or not ours any more
+                if _identity(os.stat(empty)) == _identity(os.fstat(made[empty])):
+                    empty.rmdir()
         raise
+    finally:
+        for descriptor in made.values():
+            os.close(descriptor)
+
+
+def _identity(status: os.stat_result) -> tuple[int, int]:
+    return status.st_dev, status.st_ino
 
 
 def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | Path) -> Path:

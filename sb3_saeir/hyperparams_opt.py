@@ -26,6 +26,7 @@ import sqlalchemy.exc
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_saeir.common.callbacks import EveryAgentSteps
+from sb3_saeir.common.utils import MAX_SEED
 from sb3_saeir.config import parse_policy_kwargs
 from sb3_saeir.envs import get_task_spec, make_task
 from sb3_saeir.evaluation import evaluate_multiagent_policy, score
@@ -147,7 +148,8 @@ def objective_factory(args: argparse.Namespace, hyperparams: dict[str, Any]) -> 
     def objective(trial: optuna.Trial) -> float:
         trial.set_user_attr("worker", f"{socket.gethostname()}:{os.getpid()}")
         params = merge_params(hyperparams, sample_params(trial, args.algo, n_agents))
-        experiment = Experiment(args.algo, args.task, params, seed=args.seed + trial.number)
+        seed = (args.seed + trial.number) % (MAX_SEED + 1)  # trial k: seed + k, wrapped as evaluation seeds are
+        experiment = Experiment(args.algo, args.task, params, seed=seed)
         experiment.build(verbose=0)
         eval_env = experiment.make_eval_env(args.eval_episodes, seed=EVAL_SEED_OFFSET)
         evaluator = TrialEvalCallback(trial, eval_env, args.eval_episodes, metric)

@@ -22,6 +22,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_saeir.common.atomic import remove_stale_temporaries
 from sb3_saeir.common.run_files import (
     CHECKPOINT_NAME,
     CONFIG_FILE,
@@ -131,6 +132,8 @@ class Run:
         self.stopping_now = False  # the same signal came again: the run stops at once (:meth:`_stop_at_once`)
         self.stopped_at_once: Path | None = None
         self.trained = False  # the training part has ended (what is left: the final evaluation and save)
+        self.end_state: dict[str, Any] | None = None  # the resume state of the last step, once trained
+        self.final_evaluation_left_out = False  # a second stop signal came during the final evaluation
         self.watch: RunFolderWatch | None = None
 
     # ------------------------------------------------------------------------------------------------ the whole run
@@ -270,8 +273,8 @@ class Run:
             if final.is_file():
                 raise ConfigError(
                     f"--resume: {folder} has no checkpoint ({pattern}) and its final model {final.name} holds no resume "
-                    f"state (a run stopped at once by a second Ctrl-C before its first checkpoint, or one of an older "
-                    f"version): continue that model with -i {final} instead (a fresh state)."
+                    "state (a run stopped at once by a second Ctrl-C or stop signal before its first checkpoint, or one "
+                    f"of an older version): continue that model with -i {final} instead (a fresh state)."
                 )
             raise ConfigError(
                 f"--resume: {folder} has no checkpoint ({pattern}) and no final model: nothing to resume from (a run "
@@ -397,6 +400,8 @@ class Run:
             self.target_timesteps = resume.total_timesteps(self.spec.n_timesteps)
         else:
             self.target_timesteps = (model.num_timesteps if self.continue_model else 0) + self.spec.n_timesteps
+        for stale in remove_stale_temporaries(self.folder):  # a killed segment's unfinished writes
+            self.log(f"removed {stale.name}, a file a killed process was writing")
         self.clock = SegmentClock(self.folder / SEGMENTS_FILE, done_steps or 0, self.log)
         self.watch = RunFolderWatch(self.folder)
         rollout = int(getattr(model, "n_steps", 1)) * experiment.env.num_envs
@@ -505,6 +510,7 @@ class Run:
                 if checkpoints.stopped_at is None:
                     end_state = capture_resume_state(model, checkpoints.extras)
             self.trained = checkpoints.stopped_at is None
+            self.end_state = end_state
             if checkpoints.stopped_at is None and self.evaluator is not None:
                 rows = self.evaluator.rows
                 if not rows or rows[-1]["timesteps"] < model.num_timesteps:
@@ -557,6 +563,9 @@ class Run:
         """The second stop signal: save ``<task>.zip`` where the model is (the newest checkpoint stays the resume
         point: :meth:`stop_line`)."""
         assert self.experiment is not None and self.experiment.model is not None
+        if self.trained:  # during the final evaluation: the run is trained to its budget, and finishes without it
+            self.final_evaluation_left_out = True
+            return self._finish(self.end_state)
         path = self.experiment.save(self.final_model)
         if self.clock is not None:
             self.clock.tick(self.experiment.model.num_timesteps)
@@ -567,6 +576,13 @@ class Run:
         """The one line a command prints for a run stopped early by a signal (``None``: the run was not stopped
         early): the checkpoint ``--resume`` continues from, or for a run stopped at once before its first
         checkpoint, the model ``-i`` continues."""
+        if self.final_evaluation_left_out:
+            name = signal_name(self.stop_signal or signal.SIGINT)
+            return (
+                f"Stopped at once ({name} twice) during the final evaluation: the run is trained to its budget and "
+                f"saved ({self.final_model.name}, {DONE_FILE}); its final evaluation was left out (python -m "
+                "sb3_saeir.enjoy evaluates the model)."
+            )
         if self.stopped_at_once is not None:
             name = signal_name(self.stop_signal or signal.SIGINT)
             steps = saved_timesteps(self.stopped_at_once)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import warnings
 from collections.abc import Callable
@@ -22,13 +23,16 @@ from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
 from sb3_saeir.common.registry import VEC_ENV_KEYS, get_task_spec, list_tasks
 from sb3_saeir.common.run_files import (
     ARGS_FILE,
+    BEST_MODEL_FILE,
     CHECKPOINT_NAME,
     CONFIG_FILE,
     DONE_FILE,
+    EVALUATIONS_FILE,
     LEGACY_CHECKPOINT,
     MONITOR_PREFIX,
     PROGRESS_FILE,
     RESUME_LOG,
+    SEGMENTS_FILE,
     SPEC_FILE,
 )
 from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, read_zip_data, utc_stamp
@@ -241,6 +245,9 @@ def read_spec_file(folder: Path) -> dict[str, Any] | None:
         raise ConfigError(f"{path} is damaged (not valid JSON: {error}); restore it from a copy.") from None
     if not isinstance(record, dict):
         raise ConfigError(f"{path} is damaged (not a JSON object); restore it from a copy.")
+    missing = [key for key in ("algo", "task", "n_timesteps") if key not in record]
+    if missing:
+        raise ConfigError(f"{path} is damaged (no {', '.join(missing)}); restore it from a copy.")
     for key, (valid, what) in SPEC_FIELDS.items():
         if key in record and not valid(record[key]):
             raise ConfigError(
@@ -314,14 +321,19 @@ def read_done_file(folder: Path) -> dict[str, Any] | None:
         record = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError):
         record = None
-    fields_ok = isinstance(record, dict) and all(
-        isinstance(record.get(key), (int, float)) and not isinstance(record.get(key), bool)
-        for key in ("wall_s", "segments", "timesteps")
+    fields_ok = (
+        isinstance(record, dict)
+        and isinstance(record.get("wall_s"), (int, float))
+        and not isinstance(record.get("wall_s"), bool)
+        and math.isfinite(record["wall_s"])
+        and record["wall_s"] >= 0
+        and _whole(1)(record.get("segments"))
+        and _whole(1)(record.get("timesteps"))
     )
     if not fields_ok:
         raise ConfigError(
-            f"{path} is damaged (not a JSON object with wall_s, segments and timesteps); delete it: the run's final "
-            "model and checkpoints say where it goes on, and the run writes it again when it reaches its budget."
+            f"{path} is damaged (not a JSON object with wall_s >= 0, segments >= 1 and timesteps >= 1); delete it: the "
+            "run's final model and checkpoints say where it goes on, and the run writes it again at its budget."
         )
     return record
 
@@ -441,7 +453,14 @@ def unwritable_run_folder(folder: Path) -> str:
     for path in (folder / name for name in WRITTEN_IN_PLACE):
         if path.exists() and not os.access(path, os.W_OK):
             return f"{path} is not writable"
+    for path in (folder / name for name in REPLACED_FILES):
+        if path.is_dir():  # the atomic writer cannot move a file onto it: the run failed at its first evaluation
+            return f"{path} is a folder, where the run writes a file"
     return ""
+
+
+# The files a run replaces as a whole (written beside, then moved onto the name).
+REPLACED_FILES = (SPEC_FILE, DONE_FILE, SEGMENTS_FILE, EVALUATIONS_FILE, "evaluations.npz", BEST_MODEL_FILE)
 
 
 def check_run_folder_writable(folder: Path, refused: str = "--resume", copy: str = "--resume the copy") -> None:

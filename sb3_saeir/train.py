@@ -38,6 +38,7 @@ from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.stop_signals import (
     INTERRUPTED_EXIT_STATUS,
     ctrl_c_to_the_command,
+    exit_after_the_command,
     interrupted_exit_status,
     signal_name,
     stop_signal_number,
@@ -426,4 +427,4 @@ def _main(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_after_the_command(main())

@@ -706,6 +706,7 @@ def test_a_dangling_link_as_log_folder_is_named(tmp_path, capsys):
     [
         (["-n", "0"], "-n 0: a budget is a number of agent-steps >= 1"),
         (["--eval-episodes", "0"], "--eval-episodes 0: an evaluation plays >= 1 game episode"),
+        (["-optimize"], "-optimize: rl-zoo3 has no samplers for the package's methods"),
     ],
 )
 def test_round_6_zoo_refusals(root, capsys, extra, message):

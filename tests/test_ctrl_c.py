@@ -107,7 +107,7 @@ def test_ctrl_c_twice_saves_the_model_and_names_what_continues_it(tmp_path, save
             timeout=TIMEOUT,
         )  # fmt: skip
         assert resumed.returncode == 2
-        assert "a run stopped at once by a second Ctrl-C" in resumed.stderr
+        assert "a run stopped at once by a second Ctrl-C or stop signal" in resumed.stderr
         assert f"-i {folder / (TASK + '.zip')}" in resumed.stderr
     else:
         assert "the same command with --resume continues from the checkpoint" in line
@@ -157,3 +157,48 @@ def test_zoo_ctrl_c_while_starting_leaves_nothing(tmp_path):
     status, _, stderr = finish(process)
     assert status == 130 and "nothing was written" in stderr
     assert not (tmp_path / "mappo").exists()
+
+
+def test_ctrl_c_twice_during_the_final_evaluation_finishes_the_run_without_it(tmp_path):
+    """The run is trained to its budget: it is saved with its resume state and done.json (it was saved without them,
+    and neither --resume nor a larger -n could continue it), and the line says the final evaluation was left out."""
+    process = start(train_command(tmp_path, "-n", "60", "--eval-freq", "100000", "--eval-episodes", "400"))
+    folder = tmp_path / "mappo" / f"{TASK}_1"
+    wait_for(process, lambda: trained_rows(folder) >= 1)
+    time.sleep(0.3)
+    ctrl_c_twice(process)
+    status, stdout, _ = finish(process)
+    assert status == 130 and (folder / "done.json").is_file()
+    (line,) = [line for line in stdout.splitlines() if line.startswith("Stopped")]
+    assert line.startswith("Stopped at once (Ctrl-C twice) during the final evaluation: the run is trained to its")
+    longer = subprocess.run(
+        train_command(tmp_path, "-n", "120", "--eval-freq", "100000", "--eval-episodes", "400", "--resume"), cwd=REPO,
+        env=child_env(), capture_output=True, text=True, timeout=TIMEOUT,
+    )  # fmt: skip
+    assert longer.returncode == 0, longer.stderr[-2000:]
+
+
+@pytest.mark.parametrize(("stop_signal", "status", "name"), [(signal.SIGTERM, 143, "SIGTERM"), (signal.SIGHUP, 129, "SIGHUP")])
+def test_sigterm_and_sighup_while_importing_exit_in_one_line(tmp_path, stop_signal, status, name):
+    """They killed the process without a word (Ctrl-C had its line)."""
+    process = start(train_command(tmp_path, "-n", "600"))
+    time.sleep(0.3)
+    os.kill(process.pid, stop_signal)
+    exit_status, _, stderr = finish(process)
+    assert exit_status == status and f"sb3_saeir.train: {name} while starting: stopped, nothing was written" in stderr
+
+
+def test_a_stop_signal_after_the_command_ended_is_ignored(monkeypatch):
+    """The interpreter's shutdown takes a second after the command's last line: a signal then killed the finished
+    command with another exit status."""
+    from sb3_saeir.common.stop_signals import STOP_SIGNALS, exit_after_the_command
+
+    previous = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
+    try:
+        with pytest.raises(SystemExit) as ended:
+            exit_after_the_command(0)
+        assert ended.value.code == 0
+        assert all(signal.getsignal(signum) is signal.SIG_IGN for signum in STOP_SIGNALS)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)

@@ -194,7 +194,7 @@ def test_a_damaged_seed_of_a_zoo_run_is_named_and_nothing_written(tmp_path, caps
 
     folder = tmp_path / "mappo" / f"{TASK}_1"
     folder.mkdir(parents=True)
-    (folder / "spec.json").write_text(json.dumps({"algo": "mappo", "task": TASK, "seed": "zero"}))
+    (folder / "spec.json").write_text(json.dumps({"algo": "mappo", "task": TASK, "seed": "zero", "n_timesteps": 600}))
     before = snapshot(folder)
     assert zoo_main(["train", "--algo", "mappo", "--env", TASK, "-f", str(tmp_path), "--resume"]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
@@ -457,7 +457,16 @@ def test_a_damaged_field_of_spec_json_is_named(run, capsys, fields, named):
     assert snapshot(run) == before
 
 
-@pytest.mark.parametrize("text", ["garb{", "[1, 2]", ""])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "garb{",
+        "[1, 2]",
+        "",
+        '{"wall_s": -5, "segments": 0, "timesteps": -600}',
+        '{"wall_s": NaN, "segments": 1, "timesteps": 9}',
+    ],
+)
 def test_a_damaged_done_json_is_refused_before_training_longer(finished_tiny_run, tmp_path, capsys, text):
     """A raw JSONDecodeError (after the shorter run's model was copied), or ``[1, 2]`` recorded as the shorter run."""
     folder = unfinished_copy(finished_tiny_run, tmp_path / "logs")
@@ -471,9 +480,11 @@ def test_a_damaged_done_json_is_refused_before_training_longer(finished_tiny_run
     assert snapshot(folder) == before
 
 
-def test_a_damaged_segments_json_is_kept_aside_and_the_run_goes_on(run, finished_tiny_run, capsys):
-    """A raw JSONDecodeError, after resume.log had said the run resumed."""
-    (run / "segments.json").write_text("xx[")
+@pytest.mark.parametrize("text", ["xx[", '[{"wall_s": NaN}]', '[{"wall_s": Infinity}]', '[{"wall_s": -100}]', '{"a": 1}'])
+def test_a_damaged_segments_json_is_kept_aside_and_the_run_goes_on(run, finished_tiny_run, capsys, text):
+    """A raw JSONDecodeError (NaN: a ValueError, Infinity: an OverflowError), after resume.log had said the run
+    resumed; -100 s went into done.json."""
+    (run / "segments.json").write_text(text)
     status, _, err = resume(run, capsys)
     assert status == 0, err
     assert [path.name for path in run.glob("segments.json.damaged-*")] and json.loads((run / "segments.json").read_text())
@@ -495,3 +506,39 @@ def test_unreadable_evaluation_rows_are_left_out_and_the_run_goes_on(run, capsys
     assert [p.name for p in run.glob("evaluations.csv.damaged-*")]
     assert "row(s) of evaluations.csv cannot be read" in (run / "resume.log").read_text()
     assert all(row["timesteps"].isdigit() for row in read_rows(path))
+
+
+def test_a_spec_json_without_its_budget_is_damaged(run, capsys):
+    """It was "made with other settings: -n (unset) -> 900 ... resume with the command that started it"."""
+    spec = json.loads((run / "spec.json").read_text())
+    del spec["n_timesteps"]
+    (run / "spec.json").write_text(json.dumps(spec))
+    status, _, err = resume(run, capsys)
+    assert status == 2 and f"{run / 'spec.json'} is damaged (no n_timesteps); restore it from a copy" in err
+
+
+def test_a_folder_in_place_of_a_run_file_is_refused_before_the_resume(run, capsys):
+    """evaluations.csv made a folder: the run trained to its next evaluation, then a raw IsADirectoryError."""
+    (run / "evaluations.csv").unlink()
+    (run / "evaluations.csv").mkdir()
+    status, _, err = resume(run, capsys)
+    assert status == 2
+    (line,) = err.strip().splitlines()
+    assert f"{run / 'evaluations.csv'} is a folder, where the run writes a file" in line
+
+
+def test_the_temporary_files_of_a_killed_process_are_removed_at_the_resume(run, capsys):
+    """A benchmark job terminated with its driver left .evaluations.npz.<pid>-<hex>.tmp.npz behind, for good."""
+    import subprocess
+    import sys
+
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead_pid = int(gone.stdout)
+    stale = run / f".evaluations.npz.{dead_pid}-0123abcd.tmp.npz"
+    alive = run / f".best_model.zip.{os.getpid()}-0123abcd.tmp.zip"  # a live process's: kept
+    stale.write_bytes(b"half")
+    alive.write_bytes(b"half")
+    status, _, err = resume(run, capsys)
+    assert status == 0, err
+    assert not stale.exists() and alive.exists()
+    assert f"removed {stale.name}, a file a killed process was writing" in (run / "resume.log").read_text()

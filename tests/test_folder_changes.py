@@ -5,6 +5,7 @@ resumed; it never makes the old path again, and a moved run resumes where it is.
 import errno
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -40,7 +41,11 @@ def run_until_checkpoint_then(tmp_path, change):
     while len(checkpoints(folder)) < 2:
         assert process.poll() is None and time.time() < deadline, process.communicate()
         time.sleep(0.005)
-    change(folder)
+    os.kill(process.pid, signal.SIGSTOP)  # the change is made whole, not raced by the run's own writes
+    try:
+        change(folder)
+    finally:
+        os.kill(process.pid, signal.SIGCONT)
     _, stderr = process.communicate(timeout=TIMEOUT)
     return folder, process.returncode, stderr.decode()
 

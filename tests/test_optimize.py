@@ -177,3 +177,13 @@ def test_every_method_has_a_search_space_and_group_size_stays_below_n_agents():
         group_size = sample_params(trial, "saeir_ppo", n_agents=3)["policy_kwargs"]["group_size"]
         assert 2 <= group_size < 3  # k = N would make the group critic a copy of the team critic
         study.tell(trial, 0.0)
+
+
+def test_trial_seeds_near_2_32_wrap(tmp_path):
+    """``--seed 4294967295``: trial 1 got seed 2**32 and failed with a raw traceback."""
+    argv = ["--algo", "mappo", *TINY_ARGV, "--optimize", "--n-trials", "2", "--sampler", "random", "-f", str(tmp_path)]
+    assert train_main([*argv, "--seed", "4294967295"]) == 0
+    study = optuna.load_study(
+        study_name="mappo_cn-sparse-n3", storage=f"sqlite:///{tmp_path / 'mappo' / 'mappo_cn-sparse-n3.db'}"
+    )
+    assert sum(trial.state == optuna.trial.TrialState.COMPLETE for trial in study.trials) == 2

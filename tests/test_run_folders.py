@@ -153,3 +153,18 @@ def test_a_refused_command_leaves_no_run_folder(tmp_path, capsys):
     assert train_main(argv(tmp_path / "logs", *SHORT, "-params", "batch_size:7")) == 2  # refused while building
     assert "batch_size=7" in capsys.readouterr().err
     assert not (tmp_path / "logs").exists()
+
+
+def test_a_failed_command_leaves_a_folder_made_in_place_of_its_own(tmp_path):
+    """The run folder deleted while it trained, and the user making a folder at its path: the failed command removed
+    the user's folder (and the emptied parent) as if it were the one it had made."""
+    from sb3_saeir.experiment import claimed_run_folder
+
+    with pytest.raises(RuntimeError), claimed_run_folder(tmp_path / "logs", "mappo", "cn-sparse-n3") as folder:
+        folder.rmdir()
+        folder.mkdir()  # the user's
+        raise RuntimeError("the run stopped")
+    assert folder.is_dir()
+    with pytest.raises(RuntimeError), claimed_run_folder(tmp_path / "other", "mappo", "cn-sparse-n3") as folder:
+        raise RuntimeError("refused")  # its own folder, empty: removed with the parents it made
+    assert not (tmp_path / "other").exists()

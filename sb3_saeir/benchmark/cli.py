@@ -28,7 +28,7 @@ from sb3_saeir.config import ALGOS, DEFAULT_N_GAMES, ConfigError, check_hyperpar
 from sb3_saeir.run_record import RunSpec, check_run_folder_writable, read_spec_file, spec_record
 
 # The line Ctrl-C ends with (exit status 130).
-INTERRUPTED = "interrupted: re-run the same command to resume"
+INTERRUPTED = "sb3_saeir.benchmark: interrupted: re-run the same command to resume"
 
 
 # The command's one-line description (its --help).

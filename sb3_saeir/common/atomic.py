@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -42,6 +43,39 @@ def temp_name(path: Path) -> Path:
     :param path: the file to replace
     """
     return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp{path.suffix}")
+
+
+# A temporary file of temp_name: .<name>.<pid>-<8 hex digits>.tmp<suffix>
+_TEMP_NAME = re.compile(r"\.(?P<name>.+)\.(?P<pid>\d+)-[0-9a-f]{8}\.tmp(\.[^.]*)?")
+
+
+def remove_stale_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files of :func:`temp_name` in ``folder`` left by processes that are gone (killed while
+    they wrote: SIGKILL, or a benchmark job terminated with its driver); a live process's are kept. Returns what was
+    removed.
+
+    :param folder: a folder the caller owns (a run folder under its lock)
+    """
+    removed = []
+    for path in folder.glob(".*.tmp*"):
+        match = _TEMP_NAME.fullmatch(path.name)
+        if match is None or not path.is_file() or _process_alive(int(match["pid"])):
+            continue
+        with contextlib.suppress(OSError):
+            path.unlink()
+            removed.append(path)
+    return removed
+
+
+def _process_alive(pid: int) -> bool:
+    """Whether a process with this id runs (or might: one of another user's)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
 
 
 def _create_temp(path: Path) -> Path:

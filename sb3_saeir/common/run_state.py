@@ -14,6 +14,7 @@ from __future__ import annotations
 import base64
 import csv
 import json
+import math
 import os
 import random
 import signal
@@ -551,6 +552,11 @@ def progress_logger(
 
 
 # ---------------------------------------------------------------------------------------------------- wall time
+def _seconds(value: Any) -> bool:
+    """Whether a record's value is a wall time: a finite number of seconds >= 0 (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value >= 0
+
+
 class SegmentClock:
     """Wall time of a run over its segments (one per process that worked on it), kept in ``segments.json``.
 
@@ -580,9 +586,7 @@ class SegmentClock:
             segments = json.loads(self.path.read_text())
         except (json.JSONDecodeError, UnicodeDecodeError):
             segments = None
-        if isinstance(segments, list) and all(
-            isinstance(item, dict) and isinstance(item.get("wall_s"), (int, float)) for item in segments
-        ):
+        if isinstance(segments, list) and all(isinstance(item, dict) and _seconds(item.get("wall_s")) for item in segments):
             return segments
         copy = keep_damaged(self.path)
         if log is not None:

@@ -95,26 +95,42 @@ def started_command() -> str | None:
 
 
 def _interrupted_while_starting(signum: int, frame: Any) -> None:
-    print(f"{started_command()}: Ctrl-C while starting: stopped, nothing was written", file=sys.stderr)
-    raise SystemExit(INTERRUPTED_EXIT_STATUS)
+    print(f"{started_command()}: {signal_name(signum)} while starting: stopped, nothing was written", file=sys.stderr)
+    raise SystemExit(interrupted_exit_status(signum))
 
 
 def exit_on_ctrl_c_while_starting() -> None:
-    """In a process started as a training command (:func:`started_command`), from the package's import on: Ctrl-C
-    ends it with one line and exit status 130 instead of an import traceback, until the command's ``main`` takes
-    Ctrl-C over (:func:`ctrl_c_to_the_command`). Nothing changes in any other process."""
+    """In a process started as a training command (:func:`started_command`), from the package's import on: Ctrl-C,
+    SIGTERM and SIGHUP end it with one line and exit status 130 / 143 / 129 instead of an import traceback (or no word
+    at all), until the command's ``main`` takes them over (:func:`ctrl_c_to_the_command`). Nothing changes in any
+    other process."""
     if started_command() is None or threading.current_thread() is not threading.main_thread():
         return
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, _interrupted_while_starting)
+    for signum in STOP_SIGNALS:
+        if signal.getsignal(signum) in (signal.default_int_handler, signal.SIG_DFL):
+            signal.signal(signum, _interrupted_while_starting)
 
 
 def ctrl_c_to_the_command() -> None:
-    """At the start of a training command's ``main``: Ctrl-C raises ``KeyboardInterrupt`` again (Python's default),
-    for the command to handle (:func:`exit_on_ctrl_c_while_starting` handled it while the package was imported)."""
-    in_main_thread = threading.current_thread() is threading.main_thread()
-    if in_main_thread and signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+    """At the start of a training command's ``main``: the stop signals act as Python's defaults again (Ctrl-C raises
+    ``KeyboardInterrupt``), for the command to handle (:func:`exit_on_ctrl_c_while_starting` handled them while the
+    package was imported)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for signum in STOP_SIGNALS:
+        if signal.getsignal(signum) is _interrupted_while_starting:
+            signal.signal(signum, signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL)
+
+
+def exit_after_the_command(status: int) -> None:
+    """End a training command's process with ``status``: its work is done and said, so a stop signal that comes
+    while the interpreter shuts down (a second or more) is ignored rather than killing it with another status.
+
+    :param status: the command's exit status
+    """
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+    sys.exit(status)
 
 
 def stop_signal_number(stop: KeyboardInterrupt) -> int:

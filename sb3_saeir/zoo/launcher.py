@@ -134,6 +134,11 @@ def check_train_args(argv: Sequence[str]) -> None:
     args = parser.parse_known_args(list(argv))[0]
     if not is_package_env(args.env):
         return
+    if {"-optimize", "--optimize", "--optimize-hyperparameters"} & set(argv):  # rl-zoo3's KeyError for the method
+        raise ConfigError(
+            "-optimize: rl-zoo3 has no samplers for the package's methods; tune them with python -m sb3_saeir.train "
+            "--optimize (docs/guide/training.md)."
+        )
     check_zoo_counts(args.n_timesteps, args.eval_freq, args.eval_episodes)
     if args.seed is not None and args.seed.lstrip("-").isdigit():  # not a whole number: rl-zoo3's parser refuses it
         check_seed_option(int(args.seed), draw=-1)  # numpy's seeding would fail on it later, after the folder exists

@@ -152,6 +152,8 @@ def resume_target(text: str) -> int | Path:
     """argparse type of ``--resume``'s value: a run number (``3``, as rl-zoo's ``--exp-id``; a number that is not
     whole is refused), or else the path of a run folder (a run moved to another log folder:
     ``--resume /data/logs/mappo/cn-sparse-n3_3``)."""
+    if not text.strip():  # Path("") is the current folder: a run there would be resumed without a word
+        raise argparse.ArgumentTypeError("give a run number or a run folder (no value: the latest run)")
     try:
         float(text)
     except ValueError:

@@ -683,6 +683,7 @@ def test_train_resume_of_a_benchmark_run_names_the_benchmark_command(tmp_path, c
         (["-conf", "empty.yml"], "empty.yml is empty: it must map task ids to dicts of hyperparameters"),
         (["-params", "n_envs:4"], "-params n_envs:4 and --n-games 2 disagree: give it once"),
         (["-params", "n_timesteps:60"], "-params n_timesteps:60 and -n 100 disagree: give it once"),
+        (["--resume", ""], "argument --resume: give a run number or a run folder"),  # was the current folder
     ],
 )
 def test_round_6_train_refusals(root, capsys, extra, message):
@@ -707,6 +708,7 @@ def test_a_dangling_link_as_log_folder_is_named(tmp_path, capsys):
         (["-n", "0"], "-n 0: a budget is a number of agent-steps >= 1"),
         (["--eval-episodes", "0"], "--eval-episodes 0: an evaluation plays >= 1 game episode"),
         (["-optimize"], "-optimize: rl-zoo3 has no samplers for the package's methods"),
+        (["--resume", ""], "sb3_saeir.zoo: error: argument --resume: give a run number or a run folder"),
     ],
 )
 def test_round_6_zoo_refusals(root, capsys, extra, message):

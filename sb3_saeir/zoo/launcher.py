@@ -15,7 +15,14 @@ from typing import TYPE_CHECKING, Any
 
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_saeir.command_line import check_folder, check_seed_option, one_line_warnings, resume_target, resumed_seed
+from sb3_saeir.command_line import (
+    OneLineParser,
+    check_folder,
+    check_seed_option,
+    one_line_warnings,
+    resume_target,
+    resumed_seed,
+)
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.run_files import SPEC_FILE
 from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
@@ -68,7 +75,7 @@ def _load_zoo_entry(conf: str, env_id: str) -> dict[str, Any] | None:
 
 
 def _mini_parser(options: Sequence[tuple[Sequence[str], dict[str, Any]]]) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
+    parser = OneLineParser(prog="sb3_saeir.zoo", add_help=False, allow_abbrev=False)  # its errors: one line
     for flags, kwargs in options:
         parser.add_argument(*flags, **kwargs)
     return parser

@@ -18,7 +18,7 @@ from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common import compilation
 from sb3_saeir.common.buffers import split_by_valid_length
 from sb3_saeir.config import check_hyperparams, load_hyperparams, parse_params
-from sb3_saeir.mappo.losses import scale_advantage_weights
+from sb3_saeir.mappo.losses import actor_losses, critic_loss, scale_advantage_weights
 from tests.test_save_load import deterministic_actions, observation_sequence
 
 needs_compiler = pytest.mark.skipif(compilation.find_cpp_compiler() is None, reason="no C++ compiler for inductor")
@@ -50,11 +50,13 @@ def one_update(model, samples, seed=11):
             values = policy.evaluate_critic(k, part.observations, part.critic_states[k], part.episode_starts)
             outputs[f"values/{k}/{i}"] = values.detach()
     policy.zero_grad()
-    policy_loss, entropy_loss, _, _ = model._actor_losses(groups, weights, n_valid, 0.2)
+    policy_loss, entropy_loss, _, _ = actor_losses(model.policy, groups, weights, n_valid, 0.2)
     (policy_loss + model.ent_coef * entropy_loss).backward()
     outputs["policy_loss"], outputs["entropy_loss"] = policy_loss.detach(), entropy_loss.detach()
     for k in range(policy.n_scales):
-        scale_loss = model._critic_loss(k, samples, groups, n_valid, None)
+        scale_loss = critic_loss(
+            model.policy, k, samples, groups, n_valid, None, model.normalize_values, model.value_loss, model.huber_delta
+        )
         scale_loss.backward()
         outputs[f"value_loss/{k}"] = scale_loss.detach()
     outputs.update({f"grad/{name}": p.grad.clone() for name, p in policy.named_parameters() if p.grad is not None})

@@ -10,7 +10,7 @@ import torch as th
 
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.buffers import split_by_valid_length, valid_rows
-from sb3_saeir.mappo.losses import clipped_value_loss, scale_advantage_weights
+from sb3_saeir.mappo.losses import actor_losses, clipped_value_loss, critic_loss, scale_advantage_weights
 
 TOLERANCE = 1e-5  # measured: at most 5e-7 (values, log-probs, losses, gradients)
 METHODS = {
@@ -88,12 +88,24 @@ def test_the_update_matches_the_padded_reference(model_and_samples):
     assert [group.length for group in groups] == ([1] if policy.feed_forward else [10, 5])
     n_valid = samples.mask.sum() * policy.n_agents
     weights = scale_advantage_weights(samples.advantages[samples.mask].reshape(-1, policy.n_scales))
-    computed_policy_loss, computed_entropy_loss, clip_fraction, _ = model._actor_losses(groups, weights, n_valid, clip_range)
+    computed_policy_loss, computed_entropy_loss, clip_fraction, _ = actor_losses(
+        model.policy, groups, weights, n_valid, clip_range
+    )
     assert 0.2 < clip_fraction < 0.8
     policy.zero_grad()
     (computed_policy_loss + model.ent_coef * computed_entropy_loss).backward()
     for k in range(policy.n_scales):
-        scale_loss = model._critic_loss(k, samples, groups, n_valid, clip_range_vf)
+        scale_loss = critic_loss(
+            model.policy,
+            k,
+            samples,
+            groups,
+            n_valid,
+            clip_range_vf,
+            model.normalize_values,
+            model.value_loss,
+            model.huber_delta,
+        )
         np.testing.assert_allclose(scale_loss.item(), value_losses[k].item(), rtol=TOLERANCE, atol=TOLERANCE)
         (model.vf_coef * scale_loss).backward()
     np.testing.assert_allclose(computed_policy_loss.item(), policy_loss.item(), rtol=TOLERANCE, atol=TOLERANCE)

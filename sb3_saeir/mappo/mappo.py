@@ -27,13 +27,13 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common import checks, method_arguments
 from sb3_saeir.common.atomic import save_zip
-from sb3_saeir.common.buffers import ChunkGroup, GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
+from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
 from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
 from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
-from sb3_saeir.common.type_aliases import GroupedRecurrentSamples, MultiAgentStates
+from sb3_saeir.common.type_aliases import MultiAgentStates
 from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed, user_stacklevel
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback  # importing sb3_saeir.intrinsic registers its bonuses
 from sb3_saeir.mappo.losses import actor_losses, critic_loss, scale_advantage_weights
@@ -390,8 +390,8 @@ class MAPPO(OnPolicyAlgorithm):
                 # W_K-mixed advantages: the weights from the valid rows (n_valid_rows * N, K) -> (K,)
                 weights = scale_advantage_weights(samples.advantages[samples.mask].reshape(-1, self.policy.n_scales))
 
-                policy_loss, entropy_loss, clip_fraction, approx_kl_div = self._actor_losses(
-                    groups, weights, n_valid, clip_range
+                policy_loss, entropy_loss, clip_fraction, approx_kl_div = actor_losses(
+                    self.policy, groups, weights, n_valid, clip_range
                 )
                 pg_losses.append(policy_loss.item())
                 clip_fractions.append(clip_fraction)
@@ -410,7 +410,10 @@ class MAPPO(OnPolicyAlgorithm):
                 actor_loss.backward()
                 loss_value = actor_loss.item()
                 for k, scale in enumerate(scales):
-                    scale_loss = self._critic_loss(k, samples, groups, n_valid, clip_range_vf)
+                    scale_loss = critic_loss(
+                        self.policy, k, samples, groups, n_valid, clip_range_vf,
+                        self.normalize_values, self.value_loss, self.huber_delta,
+                    )  # fmt: skip
                     (self.vf_coef * scale_loss).backward()
                     value_losses[scale].append(scale_loss.item())
                     advantage_weights[scale].append(weights[k].item())
@@ -441,25 +444,6 @@ class MAPPO(OnPolicyAlgorithm):
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/clip_range", clip_range)
         self.logger.record("train/clip_range_vf", clip_range_vf)
-
-    def _actor_losses(
-        self, groups: list[ChunkGroup], weights: th.Tensor, n_valid: th.Tensor, clip_range: float
-    ) -> tuple[th.Tensor, th.Tensor, float, float]:
-        """:func:`~sb3_saeir.mappo.losses.actor_losses` of the model's policy on a minibatch's groups of blocks."""
-        return actor_losses(self.policy, groups, weights, n_valid, clip_range)
-
-    def _critic_loss(
-        self,
-        k: int,
-        samples: GroupedRecurrentSamples,
-        groups: list[ChunkGroup],
-        n_valid: th.Tensor,
-        clip_range_vf: float | None,
-    ) -> th.Tensor:
-        """:func:`~sb3_saeir.mappo.losses.critic_loss` of the model's critic ``k``, with its value-loss settings."""
-        return critic_loss(
-            self.policy, k, samples, groups, n_valid, clip_range_vf, self.normalize_values, self.value_loss, self.huber_delta
-        )
 
     # ------------------------------------------------------------------------------------------------ SB3 API
     def dump_logs(self, iteration: int = 0) -> None:

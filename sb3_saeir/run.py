@@ -626,6 +626,8 @@ class Run:
         :class:`~sb3_saeir.common.run_lock.RunFolderWatch`): a :class:`RunStoppedError` that says what happened and
         what can be resumed (:meth:`moved_message`). The old path is never made again."""
         change = self.watch.change() if self.watch is not None else None
+        if change is None and not (self.folder / SPEC_FILE).is_file():  # the folder being deleted, file by file
+            change = f"emptied ({SPEC_FILE} deleted)"
         if change is not None:
             self._close_quietly()
             raise RunStoppedError(self.moved_message(change))
@@ -638,7 +640,7 @@ class Run:
             f"the run folder {self.folder} was {change} while the run trained: the run stopped at "
             f"{self.experiment.model.num_timesteps:,} agent-steps and wrote nothing more (the old path is not made again)"
         )
-        if change == "deleted":
+        if change == "deleted" or change.startswith("emptied"):
             return f"{stopped}; nothing is left to resume: start the run again."
         now = self.watch.current_path() if self.watch is not None else None
         checkpoint = newest_loading_checkpoint(now)[0] if now is not None else None

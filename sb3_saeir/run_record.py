@@ -174,9 +174,12 @@ def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: t
     ]
     old_options, new_options = stored.get("options") or {}, planned.get("options") or {}
     differences += [
-        f"{flag} {_show(old_options.get(flag))} -> {_show(new_options.get(flag))}"
-        for flag in sorted((set(old_options) | set(new_options)) - set(ignored))
-        if old_options.get(flag) != new_options.get(flag)
+        f"{flag} {_show(old)} -> {_show(new)}{_retyped(old, new)}"
+        for flag, old, new in (
+            (flag, old_options.get(flag), new_options.get(flag))
+            for flag in sorted((set(old_options) | set(new_options)) - set(ignored))
+        )
+        if old != new
     ]
     old_config, new_config = stored.get("config") or {}, planned["config"]
     skipped = set(stored.get("params") or {}) | set(planned["params"]) | set(UNCOMPARED_CONFIG_KEYS)
@@ -186,6 +189,14 @@ def spec_differences(stored: dict[str, Any], planned: dict[str, Any], ignored: t
         if old_config.get(key) != new_config.get(key)
     ]
     return differences
+
+
+def _retyped(old: Any, new: Any) -> str:
+    """A note for a recorded value that is the command's written as another type (``"60"`` for ``60``): an edited or
+    damaged record, not another setting."""
+    if old is not None and new is not None and type(old) is not type(new) and str(old) == str(new):
+        return " (the same value as another type: spec.json is damaged; restore it from a copy)"
+    return ""
 
 
 def _compared_params(params: Any) -> Any:

@@ -542,3 +542,13 @@ def test_the_temporary_files_of_a_killed_process_are_removed_at_the_resume(run, 
     assert status == 0, err
     assert not stale.exists() and alive.exists()
     assert f"removed {stale.name}, a file a killed process was writing" in (run / "resume.log").read_text()
+
+
+def test_an_option_recorded_as_another_type_is_named_as_damage(run, capsys):
+    """``"--save-freq": "60"`` for 60 read as another setting, with the fix "resume with the command that started it"
+    (which the user had given)."""
+    spec = json.loads((run / "spec.json").read_text())
+    spec["options"]["--save-freq"] = str(spec["options"]["--save-freq"])
+    (run / "spec.json").write_text(json.dumps(spec))
+    status, _, err = resume(run, capsys)
+    assert status == 2 and "(the same value as another type: spec.json is damaged; restore it from a copy)" in err

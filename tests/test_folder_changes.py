@@ -117,3 +117,17 @@ def test_the_watch_tells_moved_deleted_and_in_place_apart(tmp_path):
     folder.mkdir()  # another folder at the path: not the run's
     assert watch.change() == "deleted"
     watch.close()
+
+
+def test_a_run_folder_emptied_while_it_trains_stops_the_run(tmp_path):
+    """``rm -rf`` racing the run's writes deletes its files and leaves the folder: the run went on to the end without
+    a word, and the folder then answered --resume with "not a run of this command"."""
+
+    def empty(folder):
+        for path in folder.iterdir():
+            shutil.rmtree(path) if path.is_dir() else path.unlink()
+
+    folder, status, stderr = run_until_checkpoint_then(tmp_path, empty)
+    line = error_line(stderr)
+    assert status == 1 and f"the run folder {folder} was emptied (spec.json deleted) while the run trained" in line
+    assert "nothing is left to resume" in line

@@ -117,7 +117,7 @@ def test_ctrl_c_twice_saves_the_model_and_names_what_continues_it(tmp_path, save
 def test_ctrl_c_during_the_first_evaluation_stops_at_the_first_checkpoint(tmp_path):
     """Before the first rollout (the evaluation at 0 agent-steps): the stop comes at the first rollout start, whose
     checkpoint ``--resume`` continues from."""
-    extra = ["-n", "120", "--eval-freq", "60", "--eval-episodes", "100"]
+    extra = ["-n", "120", "--eval-freq", "60", "--eval-episodes", "1000"]
     process = start(train_command(tmp_path, *extra))
     folder = tmp_path / "mappo" / f"{TASK}_1"
     wait_for(process, lambda: (folder / "spec.json").is_file())
@@ -136,10 +136,10 @@ def test_ctrl_c_during_the_first_evaluation_stops_at_the_first_checkpoint(tmp_pa
 def test_ctrl_c_during_the_final_evaluation_finishes_the_run(tmp_path):
     """After the last rollout (during its update or the final evaluation): the run finishes (final evaluation, model,
     ``done.json``) and exits 0."""
-    process = start(train_command(tmp_path, "-n", "60", "--eval-freq", "100000", "--eval-episodes", "300"))
+    process = start(train_command(tmp_path, "-n", "60", "--eval-freq", "100000", "--eval-episodes", "2000"))
     folder = tmp_path / "mappo" / f"{TASK}_1"
     wait_for(process, lambda: trained_rows(folder) >= 1)  # the one rollout is done (its update follows)
-    time.sleep(0.3)  # the update takes milliseconds, the final evaluation of 300 game episodes about a second
+    time.sleep(0.3)  # the update takes milliseconds, the final evaluation of 2000 game episodes seconds
     os.kill(process.pid, signal.SIGINT)
     status, _, _ = finish(process)
     assert status == 0 and (folder / "done.json").is_file()
@@ -162,7 +162,7 @@ def test_zoo_ctrl_c_while_starting_leaves_nothing(tmp_path):
 def test_ctrl_c_twice_during_the_final_evaluation_finishes_the_run_without_it(tmp_path):
     """The run is trained to its budget: it is saved with its resume state and done.json (it was saved without them,
     and neither --resume nor a larger -n could continue it), and the line says the final evaluation was left out."""
-    process = start(train_command(tmp_path, "-n", "60", "--eval-freq", "100000", "--eval-episodes", "400"))
+    process = start(train_command(tmp_path, "-n", "60", "--eval-freq", "100000", "--eval-episodes", "2000"))
     folder = tmp_path / "mappo" / f"{TASK}_1"
     wait_for(process, lambda: trained_rows(folder) >= 1)
     time.sleep(0.3)
@@ -172,7 +172,7 @@ def test_ctrl_c_twice_during_the_final_evaluation_finishes_the_run_without_it(tm
     (line,) = [line for line in stdout.splitlines() if line.startswith("Stopped")]
     assert line.startswith("Stopped at once (Ctrl-C twice) during the final evaluation: the run is trained to its")
     longer = subprocess.run(
-        train_command(tmp_path, "-n", "120", "--eval-freq", "100000", "--eval-episodes", "400", "--resume"), cwd=REPO,
+        train_command(tmp_path, "-n", "120", "--eval-freq", "100000", "--eval-episodes", "2000", "--resume"), cwd=REPO,
         env=child_env(), capture_output=True, text=True, timeout=TIMEOUT,
     )  # fmt: skip
     assert longer.returncode == 0, longer.stderr[-2000:]
@@ -185,7 +185,10 @@ def test_sigterm_and_sighup_while_importing_exit_in_one_line(tmp_path, stop_sign
     time.sleep(0.3)
     os.kill(process.pid, stop_signal)
     exit_status, _, stderr = finish(process)
-    assert exit_status == status and f"sb3_saeir.train: {name} while starting: stopped, nothing was written" in stderr
+    assert exit_status == status
+    assert f"sb3_saeir.train: {name} while starting: stopped, nothing was written" in stderr or (
+        f"sb3_saeir.train: {name}: stopped before the run started: nothing was written" in stderr  # imported already
+    )
 
 
 def test_a_stop_signal_after_the_command_ended_is_ignored(monkeypatch):

@@ -518,7 +518,7 @@ class Run:
                     self.evaluator.evaluate()  # the final evaluation
             return self._finish(end_state)
         except OSError as error:
-            change = self.watch.change() if self.watch is not None else None
+            change = self.folder_change()
             if change is not None:
                 message = self.moved_message(change)
             elif error.errno in NO_SPACE_ERRNOS:
@@ -625,12 +625,19 @@ class Run:
         """Stop the run before it writes, when its folder was moved or deleted while it trained (:meth:`start`'s
         :class:`~sb3_saeir.common.run_lock.RunFolderWatch`): a :class:`RunStoppedError` that says what happened and
         what can be resumed (:meth:`moved_message`). The old path is never made again."""
-        change = self.watch.change() if self.watch is not None else None
-        if change is None and not (self.folder / SPEC_FILE).is_file():  # the folder being deleted, file by file
-            change = f"emptied ({SPEC_FILE} deleted)"
+        change = self.folder_change()
         if change is not None:
             self._close_quietly()
             raise RunStoppedError(self.moved_message(change))
+
+    def folder_change(self) -> str | None:
+        """What happened to the run's folder while it trained: moved or deleted
+        (:meth:`~sb3_saeir.common.run_lock.RunFolderWatch.change`), or emptied (being deleted file by file: its
+        ``spec.json`` is gone); ``None`` while it is in place."""
+        change = self.watch.change() if self.watch is not None else None
+        if change is None and self.watch is not None and not (self.folder / SPEC_FILE).is_file():
+            change = f"emptied ({SPEC_FILE} deleted)"
+        return change
 
     def moved_message(self, change: str) -> str:
         """One line for a run whose folder was moved or deleted while it trained (``change``:

@@ -220,26 +220,15 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     overrides = parse_params(args.params)
     double_buffered = DOUBLE_BUFFERED_FLAGS[args.double_buffered] if args.double_buffered is not None else None
     compile_on = None if getattr(args, "compile", None) is None else args.compile == "on"
-    check_params_against_flags(
-        overrides,
-        {
-            "n_envs": ("--n-games", args.n_games),
-            "n_timesteps": ("-n", args.n_timesteps),
-            "num_cpus": ("--num-cpus", args.num_cpus),
-            "double_buffered": ("--double-buffered", double_buffered),
-            "compile": ("--compile", compile_on),
-        },
-    )
-    if args.n_games is not None:
-        overrides["n_envs"] = args.n_games
-    if args.n_timesteps is not None:
-        overrides["n_timesteps"] = args.n_timesteps
-    if args.num_cpus is not None:
-        overrides["num_cpus"] = args.num_cpus
-    if args.double_buffered is not None:
-        overrides["double_buffered"] = DOUBLE_BUFFERED_FLAGS[args.double_buffered]
-    if getattr(args, "compile", None) is not None:
-        overrides["compile"] = args.compile == "on"
+    flags = {
+        "n_envs": ("--n-games", args.n_games),
+        "n_timesteps": ("-n", args.n_timesteps),
+        "num_cpus": ("--num-cpus", args.num_cpus),
+        "double_buffered": ("--double-buffered", double_buffered),
+        "compile": ("--compile", compile_on),
+    }
+    check_params_against_flags(overrides, flags)
+    overrides.update({key: value for key, (_, value) in flags.items() if value is not None})
     check_hyperparams(args.algo, hyperparams, overrides)
     resolved = {**hyperparams, **overrides}
     check_folder("tensorboard_log", resolved.get("tensorboard_log"))

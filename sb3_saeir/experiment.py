@@ -10,7 +10,6 @@ from the packaged (or given) config, its callbacks, ``learn`` and ``save``; a ru
 from __future__ import annotations
 
 import inspect
-import os
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -22,6 +21,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
 from sb3_saeir.common.run_files import BEST_MODEL_FILE, FINAL_MODEL
+from sb3_saeir.common.run_lock import RunFolderWatch
 from sb3_saeir.common.run_state import load_resume_state, read_zip_data, saved_policy_class
 from sb3_saeir.common.utils import MAX_SEED
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
@@ -382,24 +382,20 @@ def claimed_run_folder(log_folder: str | Path, algo: str, task: str) -> Iterator
             break
         except FileExistsError:
             number += 1
-    # open descriptors of what this command made: while they are open, another folder at the path (the run's was
-    # deleted and the user made one) cannot take the same inode, and is left alone
-    made = {path: os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC) for path in (folder, *created)}
+    # what this command made, held open: another folder at the path (the run's was deleted and the user made one)
+    # cannot take the same inode, and is left alone
+    made = {path: RunFolderWatch(path) for path in (folder, *created)}
     try:
         yield folder
     except BaseException:
         for empty in (folder, *created):
-            with suppress(OSError):  # not empty (something was written: keep it), or not ours any more
-                if _identity(os.stat(empty)) == _identity(os.fstat(made[empty])):
+            with suppress(OSError):  # not empty (something was written: keep it)
+                if made[empty].change() is None:  # still the folder it made, in place
                     empty.rmdir()
         raise
     finally:
-        for descriptor in made.values():
-            os.close(descriptor)
-
-
-def _identity(status: os.stat_result) -> tuple[int, int]:
-    return status.st_dev, status.st_ino
+        for watch in made.values():
+            watch.close()
 
 
 def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | Path) -> Path:

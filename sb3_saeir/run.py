@@ -135,6 +135,7 @@ class Run:
         self.end_state: dict[str, Any] | None = None  # the resume state of the last step, once trained
         self.final_evaluation_left_out = False  # a second stop signal came during the final evaluation
         self.watch: RunFolderWatch | None = None
+        self.shorter_run_done: dict[str, Any] | None = None  # at an extension: the done.json of the shorter run
 
     # ------------------------------------------------------------------------------------------------ the whole run
     def execute(
@@ -253,8 +254,8 @@ class Run:
             )
         self.stored = stored
         self.extended_from = extended_budget(stored, self.spec.n_timesteps)
-        if self.extended_from is not None:
-            read_done_file(self.folder)  # a damaged one is refused here, before anything is written
+        # the shorter run's done.json, read (a damaged one refused) before anything is written; the extension records it
+        self.shorter_run_done = read_done_file(self.folder) if self.extended_from is not None else None
         warn_other_version(self.folder, stored)
 
     def check_resumable(self, stored: dict[str, Any]) -> None:
@@ -330,7 +331,7 @@ class Run:
 
     def _record_extension(self, stored: dict[str, Any]) -> None:
         final = self.final_model
-        finished = read_done_file(self.folder)
+        finished = self.shorter_run_done
         if finished is not None and final.is_file():
             kept = final.with_name(SHORTER_RUN_MODEL.format(task=self.spec.task, steps=saved_timesteps(final)))
             if not kept.exists():

@@ -106,7 +106,8 @@ class RunFolderWatch:
     """Where a run's folder is while its run trains: an open descriptor of the folder taken at the start, so that a
     folder moved, deleted or replaced is told apart from one in place, and a moved folder's new path is found (Linux:
     ``/proc/self/fd``; macOS: ``F_GETPATH``). A run checks it before it writes (``docs/guide/training.md``, "The run
-    folder moved, deleted or read-only"): it never writes at, or makes again, a path its folder has left.
+    folder moved, deleted or read-only"): it never writes at, or makes again, a path its folder has left; a refused
+    command removes only the folders it made that are still in place.
 
     :param folder: the run folder (it exists)
     """

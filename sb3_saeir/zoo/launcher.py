@@ -147,8 +147,9 @@ def check_train_args(argv: Sequence[str]) -> None:
             "--optimize (docs/guide/training.md)."
         )
     check_zoo_counts(args.n_timesteps, args.eval_freq, args.eval_episodes)
-    if args.seed is not None and args.seed.lstrip("-").isdigit():  # not a whole number: rl-zoo3's parser refuses it
-        check_seed_option(int(args.seed), draw=-1)  # numpy's seeding would fail on it later, after the folder exists
+    seed = _whole_number(args.seed)  # not a whole number: rl-zoo3's parser refuses it
+    if seed is not None:
+        check_seed_option(seed, draw=-1)  # numpy's seeding would fail on it later, after the folder exists
     check_folder("-f/--log-folder", args.log_folder)
     check_folder("-tb/--tensorboard-log", args.tensorboard_log or None)
     for item in (item for group in args.hyperparams for item in group):
@@ -156,6 +157,13 @@ def check_train_args(argv: Sequence[str]) -> None:
     items = [item for group in args.hyperparams for item in group if item.split(":")[0] == "n_envs"]
     entry = _load_zoo_entry(args.conf_file, args.env) if args.conf_file is not None else None
     check_n_envs(parse_params(items[-1:])["n_envs"] if items else (entry or {}).get("n_envs"))
+
+
+def _whole_number(text: str | None) -> int | None:
+    """An option's value as rl-zoo3's ``int`` options take it, or ``None`` (not given, or not a whole number written
+    in ASCII digits: rl-zoo3's own parser refuses those)."""
+    digits = text.removeprefix("-") if text is not None else ""
+    return int(text) if text is not None and digits.isascii() and digits.isdigit() else None
 
 
 def check_zoo_counts(n_timesteps: str | None, eval_freq: str | None, eval_episodes: str | None) -> None:
@@ -167,11 +175,7 @@ def check_zoo_counts(n_timesteps: str | None, eval_freq: str | None, eval_episod
     :param eval_freq: ``--eval-freq`` as given
     :param eval_episodes: ``--eval-episodes`` as given
     """
-
-    def whole(text: str | None) -> int | None:
-        return int(text) if text is not None and text.lstrip("-").isascii() and text.lstrip("-").isdigit() else None
-
-    budget, frequency, episodes = whole(n_timesteps), whole(eval_freq), whole(eval_episodes)
+    budget, frequency, episodes = _whole_number(n_timesteps), _whole_number(eval_freq), _whole_number(eval_episodes)
     if budget is not None and budget < 1:
         raise ConfigError(
             f"-n {n_timesteps}: a budget is a number of agent-steps >= 1 (rl-zoo3 reads -n <= 0 as not given and would "

@@ -94,18 +94,18 @@ def football_shaped_env(n_games: int, seed: int) -> Any:
 
 def build(args: argparse.Namespace, compile_setting: bool) -> tuple[Any, Any, list]:
     """The model of the packaged config (``--policy-kwargs`` merged in) and its env."""
-    from sb3_saeir.config import build_model, load_hyperparams, parse_policy_kwargs
+    from sb3_saeir.config import load_hyperparams, parse_policy_kwargs
+    from sb3_saeir.experiment import Experiment
 
     hyperparams = load_hyperparams(args.algo, args.task)
     if args.policy_kwargs:
         merged = {**parse_policy_kwargs(hyperparams.get("policy_kwargs")), **parse_policy_kwargs(args.policy_kwargs)}
         hyperparams["policy_kwargs"] = merged
     hyperparams["num_cpus"] = 0
-    env = football_shaped_env(args.n_games, args.seed) if args.synthetic_football else None
-    model, env, callbacks, _ = build_model(
-        args.algo, args.task, hyperparams, n_games=args.n_games, seed=args.seed, env=env, compile=compile_setting
-    )
-    return model, env, callbacks
+    hyperparams["compile"] = compile_setting
+    experiment = Experiment(args.algo, args.task, hyperparams, seed=args.seed, n_games=args.n_games)
+    model = experiment.build(env=football_shaped_env(args.n_games, args.seed) if args.synthetic_football else None)
+    return model, experiment.env, experiment.config_callbacks
 
 
 class Snapshot:

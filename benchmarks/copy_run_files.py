@@ -21,7 +21,7 @@ from pathlib import Path
 import bonus_files
 
 from sb3_saeir.benchmark import read_rows
-from sb3_saeir.common.run_files import DONE_FILE, EVALUATIONS_FILE, PROGRESS_FILE, RESUME_LOG, SEGMENTS_FILE, SPEC_FILE
+from sb3_saeir.run.files import DONE_FILE, EVALUATIONS_FILE, PROGRESS_FILE, RESUME_LOG, SEGMENTS_FILE, SPEC_FILE
 
 COMMITTED_FILES = (SPEC_FILE, EVALUATIONS_FILE, SEGMENTS_FILE, RESUME_LOG, DONE_FILE)
 

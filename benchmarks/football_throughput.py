@@ -40,7 +40,8 @@ import torch as th
 from gymnasium import spaces
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.config import build_model, load_hyperparams
+from sb3_saeir.config import load_hyperparams
+from sb3_saeir.experiment import Experiment
 
 
 def cpu_seconds() -> float:
@@ -183,7 +184,9 @@ def training(
     if double_buffered is not None:
         config["double_buffered"] = {"on": True, "off": False, "auto": "auto"}[double_buffered]
     with TreeMemory() as memory:
-        model, env, callbacks, _ = build_model(algo, task, config, n_games=n_games, seed=seed)
+        experiment = Experiment(algo, task, config, seed=seed, n_games=n_games)
+        model = experiment.build()
+        env, callbacks = experiment.env, experiment.config_callbacks
         n_agents = env.num_envs // n_games
         agent_steps = iterations * model.n_steps * env.num_envs
         cpu_start, start = cpu_seconds(), time.perf_counter()

@@ -26,7 +26,7 @@ from torch import nn
 from torch.profiler import ProfilerActivity, profile, record_function
 
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
-from sb3_saeir.config import build_model
+from sb3_saeir.experiment import Experiment
 
 # modules timed one level below the policy's actor and critics (HypergraphScaleCritic's message-passing parts included)
 _MODULE_DEPTH = 4
@@ -97,7 +97,9 @@ def main() -> None:
     args = parser.parse_args()
     th.set_num_threads(args.threads)
 
-    model, env, callbacks, _ = build_model(args.algo, args.task, n_games=args.n_games, seed=args.seed, device=args.device)
+    experiment = Experiment(args.algo, args.task, seed=args.seed, n_games=args.n_games)
+    model = experiment.build(device=args.device)
+    env, callbacks = experiment.env, experiment.config_callbacks
     policy = model.policy
     if not isinstance(policy, MultiAgentActorCriticPolicy):
         raise SystemExit(f"--algo {args.algo}: this script profiles the multi-agent policies (not {type(policy).__name__})")

@@ -25,7 +25,7 @@ update to give the update's GFLOP/s, which is compared with a 64-wide matrix pro
 measured in the same process with the same threads and device. ``random`` steps the env with random actions.
 
 Timings on shared machines are noisy: compare figures from one sitting, interleaving the versions compared. The
-script only uses the public API (``sb3_saeir.config.build_model``), so it also runs against older versions of the
+script only uses the public API (``sb3_saeir.experiment.Experiment``), so it also runs against older versions of the
 package (run it with that version's interpreter).
 """
 
@@ -152,14 +152,14 @@ def measure_method(
     :return: agent-steps/s, seconds per phase, update GFLOP and GFLOP/s, the matmul GFLOP/s, peak RSS (MiB)
     """
     th.set_num_threads(threads)
-    from sb3_saeir.config import build_model
+    from sb3_saeir.experiment import Experiment
 
     torch_device = th.device(device)
     if algo == "random":
         return _random_stepping(task, n_games, iterations, seed, backend)
     timer = PhaseTimer(torch_device)
     _patch_bonus(timer)
-    env: VecEnv | None = None  # None: build_model makes the config's
+    env: VecEnv | None = None  # None: the experiment makes the config's
     if backend is not None or num_cpus is not None:  # the env backend (native or SuperSuit) or worker processes asked for
         from sb3_saeir import make_multiagent_vec_env
         from sb3_saeir.config import load_hyperparams
@@ -177,9 +177,9 @@ def measure_method(
         hyperparams = load_hyperparams(algo, task)
         merged = {**parse_policy_kwargs(hyperparams.get("policy_kwargs")), **parse_policy_kwargs(policy_kwargs)}
         hyperparams["policy_kwargs"] = merged
-    model, env, callbacks, _ = build_model(
-        algo, task, hyperparams=hyperparams, n_games=n_games, seed=seed, env=env, device=device
-    )
+    experiment = Experiment(algo, task, hyperparams, seed=seed, n_games=n_games)
+    model = experiment.build(env=env, device=device)
+    env, callbacks = experiment.env, experiment.config_callbacks
     policy = model.policy
     policy.forward = timer.wrap("inference", policy.forward)  # type: ignore[method-assign]
     policy.predict_values = timer.wrap("inference", policy.predict_values)  # type: ignore[method-assign]

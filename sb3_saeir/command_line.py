@@ -16,10 +16,18 @@ from pathlib import Path
 from typing import Any
 
 from sb3_saeir.common.checks import MAX_TIMESTEPS, check_device
-from sb3_saeir.common.run_files import ARGS_FILE, SPEC_FILE
 from sb3_saeir.common.utils import MAX_SEED, check_seed, unwritable_folder
-from sb3_saeir.config import ALGOS, ConfigError, check_hyperparams, config_path, load_hyperparams, parse_params
+from sb3_saeir.config import (
+    ConfigError,
+    check_algo,
+    check_hyperparams,
+    check_params_against_flags,
+    config_path,
+    load_hyperparams,
+    parse_params,
+)
 from sb3_saeir.envs import list_tasks
+from sb3_saeir.run.files import ARGS_FILE, SPEC_FILE
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -168,14 +176,6 @@ def check_arguments(args: argparse.Namespace) -> None:
     check_range("--eval-episodes", args.eval_episodes, 1)
     check_range("--save-freq", args.save_freq, -1, " (-1 or 0: never)")
     check_range("--num-threads", args.num_threads, 0, " (0: the free cores)")
-    if args.seed is not None:  # None: not given (0, or the run's at --resume)
-        check_seed_option(args.seed, draw=DRAW_SEED)
-    check_folder("-f/--log-folder", args.log_folder)
-    check_folder("-tb/--tensorboard-log", args.tensorboard_log)
-    try:
-        check_device("--device", args.device, cpu_fallback=False)  # cuda refused where there is none (no CPU fallback)
-    except ValueError as error:
-        raise ConfigError(str(error)) from None
     if args.resume is not None and args.optimize:
         raise ConfigError("--resume continues one training run; it does not apply to --optimize (drop one of them).")
     if args.optimize:
@@ -185,6 +185,14 @@ def check_arguments(args: argparse.Namespace) -> None:
             check_range("--n-jobs", args.n_jobs, 1, " (or -1: one per CPU)")
         if args.storage is not None:
             check_storage(args.storage)
+    check_folder("-f/--log-folder", args.log_folder)
+    check_folder("-tb/--tensorboard-log", args.tensorboard_log)
+    if args.seed is not None:  # None: not given (0, or the run's at --resume)
+        check_seed_option(args.seed, draw=DRAW_SEED)
+    try:
+        check_device("--device", args.device, cpu_fallback=False)  # cuda refused where there is none (no CPU fallback)
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
 
 
 def check_storage(storage: str) -> None:
@@ -203,8 +211,7 @@ def check_storage(storage: str) -> None:
 
 def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     """The config entry (packaged or ``-conf``) with ``-params`` and ``--n-games`` / ``--n-timesteps`` applied."""
-    if args.algo not in ALGOS:
-        raise ConfigError(f"unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
+    check_algo(args.algo)
     if args.task not in list_tasks():
         raise ConfigError(f"unknown task {args.task!r}; valid choices: {', '.join(list_tasks())}.")
     conf_file = args.conf_file or config_path(args.algo)
@@ -233,19 +240,6 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
     resolved = {**hyperparams, **overrides}
     check_folder("tensorboard_log", resolved.get("tensorboard_log"))
     return resolved
-
-
-def check_params_against_flags(params: dict[str, Any], flags: dict[str, tuple[str, Any]]) -> None:
-    """Refuse a ``-params`` key that a flag of the command sets too, to another value (the flag won without a word,
-    and the benchmark's record kept the ``-params`` value, which did not train).
-
-    :param params: the ``-params`` overrides
-    :param flags: config key -> (the flag that sets it, its value; ``None``: not given)
-    :raises ~sb3_saeir.config.ConfigError: naming both
-    """
-    for key, (flag, value) in flags.items():
-        if value is not None and key in params and params[key] != value:
-            raise ConfigError(f"-params {key}:{params[key]!r} and {flag} {value} disagree: give it once.")
 
 
 # Values of --double-buffered -> the algorithms' double_buffered.

@@ -1,5 +1,5 @@
-"""rl-zoo style YAML configs and the models built from them: one file per method in ``zoo_configs/``, one entry per
-task id.
+"""rl-zoo style YAML configs: one file per method in ``zoo_configs/``, one entry per task id (the model built from an
+entry: :meth:`sb3_saeir.experiment.Experiment.build`).
 
 Entry keys (rl-zoo's vocabulary): ``n_timesteps`` (agent-steps), ``n_envs`` (number of *games*; the vec env has
 ``n_envs * n_agents`` slots), ``num_cpus`` (env worker processes, 0 by default), ``policy``, ``policy_kwargs`` (a dict
@@ -16,17 +16,18 @@ import os
 import re
 import types
 import typing
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 from stable_baselines3 import PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
-from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
 
@@ -42,6 +43,8 @@ ALGOS: dict[str, type[OnPolicyAlgorithm]] = {
     "ippo": PPO,
 }
 
+# Policy keywords that the algorithm sets itself (from the env and its own ``normalize_values``), not a config.
+ALGORITHM_POLICY_KWARGS = ("n_agents", "normalize_values")
 # Keys of a config entry that are not constructor arguments of the algorithm.
 CONFIG_KEYS = ("n_timesteps", "n_envs", "num_cpus", "env_kwargs", "policy", "policy_kwargs", "callback")
 # Games of a config entry without ``n_envs``.
@@ -50,6 +53,25 @@ DEFAULT_N_GAMES = 8
 
 class ConfigError(ValueError):
     """A bad command line or config: the message names the problem and the valid choices."""
+
+
+class UnknownAlgorithmError(ConfigError, KeyError):
+    """A method name that is not a key of :data:`ALGOS` (:func:`check_algo`); a ``KeyError`` too, as a lookup of it
+    in :data:`ALGOS` would raise."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
+def check_algo(algo: str) -> None:
+    """Refuse a method name that is not a key of :data:`ALGOS` (every command and :class:`~sb3_saeir.experiment.Experiment`
+    check it here, with one message).
+
+    :param algo: the method name (``--algo``)
+    :raises UnknownAlgorithmError: naming it and the valid choices
+    """
+    if algo not in ALGOS:
+        raise UnknownAlgorithmError(f"unknown algorithm {algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
 
 
 # ------------------------------------------------------------------------------------------------ YAML
@@ -209,6 +231,19 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
         raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
 
 
+def check_params_against_flags(params: dict[str, Any], flags: dict[str, tuple[str, Any]]) -> None:
+    """Refuse a ``-params`` key that a flag of the command sets too, to another value (the flag won without a word,
+    and the benchmark's record kept the ``-params`` value, which did not train).
+
+    :param params: the ``-params`` overrides
+    :param flags: config key -> (the flag that sets it, its value; ``None``: not given)
+    :raises ~sb3_saeir.config.ConfigError: naming both
+    """
+    for key, (flag, value) in flags.items():
+        if value is not None and key in params and params[key] != value:
+            raise ConfigError(f"-params {key}:{params[key]!r} and {flag} {value} disagree: give it once.")
+
+
 def check_n_envs(n_envs: Any) -> None:
     """Refuse an ``n_envs`` (number of games) that is not a positive integer, from a config file or ``-params``
     (``None``: not given, accepted).
@@ -227,8 +262,7 @@ def config_dir() -> Path:
 
 def config_path(algo: str) -> Path:
     """Path of the packaged config of a method."""
-    if algo not in ALGOS:
-        raise KeyError(f"Unknown algorithm {algo!r}. Valid choices: {', '.join(sorted(ALGOS))}.")
+    check_algo(algo)
     return config_dir() / f"{algo}.yml"
 
 
@@ -331,39 +365,85 @@ def algorithm_kwargs(params: dict[str, Any], n_games: int, env: VecEnv) -> dict[
     return kwargs
 
 
-def build_model(
-    algo: str,
-    task: str,
-    hyperparams: dict[str, Any] | None = None,
-    n_games: int | None = None,
-    seed: int | None = None,
-    env: VecEnv | None = None,
-    **model_kwargs: Any,
-) -> tuple[OnPolicyAlgorithm, VecEnv, list[BaseCallback], dict[str, Any]]:
-    """Build a method's model on a task from its config entry.
+def loaded_network(model: BaseAlgorithm, path: str | Path, requested: Any, configured: Any) -> str | None:
+    """``-i``: a loaded model trains the network it was saved with (SB3's ``load`` drops other ``policy_kwargs``
+    without a word). Refuse a ``-params policy_kwargs`` that asks for another network; return the loaded network's
+    ``policy_kwargs`` as a config writes them when the config's describe another network (the run's record then
+    says what trains), else ``None``.
 
-    :param algo: method name (a key of :data:`ALGOS`)
-    :param task: task id
-    :param hyperparams: the config entry (default: the packaged one)
-    :param n_games: override ``n_envs`` (number of games)
-    :param seed: seed of model and env
-    :param env: use this multi-agent vec env (possibly wrapped) instead of creating one
-    :param model_kwargs: extra algorithm arguments (override the config; e.g. ``verbose``, ``tensorboard_log``)
-    :return: model, env, the config's callbacks (pass them to ``learn``), and the resolved hyperparameters
+    :param model: the loaded model
+    :param path: where it was loaded from (``-i``)
+    :param requested: the command's ``-params policy_kwargs`` (``None``: not given)
+    :param configured: the config entry's ``policy_kwargs``
+    :raises ~sb3_saeir.config.ConfigError: naming the settings that cannot apply
     """
-    params = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
-    resolved = dict(params)
-    games = int(n_games if n_games is not None else params.get("n_envs", DEFAULT_N_GAMES))
-    resolved["n_envs"] = games
-    if env is None:
-        num_cpus = int(params.get("num_cpus", 0))
-        env_kwargs = parse_policy_kwargs(params.get("env_kwargs"))
-        env = make_multiagent_vec_env(task, n_games=games, seed=seed, num_cpus=num_cpus, **env_kwargs)
-    algo_kwargs = algorithm_kwargs(params, games, env)
-    if "batch_size" in algo_kwargs:
-        resolved["batch_size"] = algo_kwargs["batch_size"]
-    algo_kwargs.update(model_kwargs)
-    policy = params.get("policy", "MlpPolicy")
+    in_config = parse_policy_kwargs(configured)
+    asked = parse_policy_kwargs(requested) if requested is not None else {}
+    saved = {
+        key: value
+        for key, value in (getattr(model, "policy_kwargs", {}) or {}).items()
+        if key not in ALGORITHM_POLICY_KWARGS or key in in_config or key in asked
+    }  # as a config writes them: without what the algorithm sets itself
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(type(model.policy).__init__).parameters.items()
+        if parameter.default is not inspect.Parameter.empty
+    }
+
+    def differing(kwargs: dict[str, Any], keys: set[str]) -> list[str]:
+        """The keys of ``keys`` whose value (a policy default where not given) differs from the loaded network's."""
+        return [key for key in sorted(keys) if kwargs.get(key, defaults.get(key)) != saved.get(key, defaults.get(key))]
+
+    keys = differing(asked, set(asked))
+    if keys:
+        wanted = ", ".join(f"{key}={kwarg_text(asked[key])}" for key in keys)
+        has = ", ".join(f"{key}={kwarg_text(saved.get(key, defaults.get(key)))}" for key in keys)
+        raise ConfigError(
+            f"-i {path}: -params policy_kwargs {wanted} cannot apply to the loaded model, whose network has {has}: a "
+            "loaded model trains the network it was saved with. Drop the policy_kwargs override, or start a new run "
+            "without -i."
+        )
+    if differing(in_config, set(in_config) | set(saved)):
+        return "dict(" + ", ".join(f"{key}={kwarg_text(value)}" for key, value in sorted(saved.items())) + ")"
+    return None
+
+
+def kwarg_text(value: Any) -> str:
+    """A policy keyword's value as a config writes it (``nn.Tanh`` for a torch module class)."""
+    if isinstance(value, type) and value.__module__.startswith("torch.nn"):
+        return f"nn.{value.__name__}"
+    return repr(value)
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """What a config entry builds (or loads) a model with, on a given env (:func:`model_settings`).
+
+    :param policy: the ``policy`` (an alias such as ``"MSHGPolicy"``, or a class)
+    :param policy_kwargs: the ``policy_kwargs``, parsed
+    :param algorithm_kwargs: the algorithm class's arguments (:func:`algorithm_kwargs`)
+    :param callbacks: the ``callback`` entries, built (passed to ``learn``)
+    :param resolved: the entry as the model trains it: its games as ``n_envs``, its ``batch_size`` for them
+    """
+
+    policy: Any
+    policy_kwargs: dict[str, Any]
+    algorithm_kwargs: dict[str, Any]
+    callbacks: list[BaseCallback]
+    resolved: dict[str, Any]
+
+
+def model_settings(params: dict[str, Any], n_games: int, env: VecEnv) -> ModelSettings:
+    """Everything a config entry says about a model on ``env`` with ``n_games`` games, read at once.
+
+    :param params: the config entry
+    :param n_games: the games of the model's env
+    :param env: the model's multi-agent vec env
+    """
+    kwargs = algorithm_kwargs(params, n_games, env)
+    resolved = {**params, "n_envs": n_games}
+    if "batch_size" in kwargs:
+        resolved["batch_size"] = kwargs["batch_size"]
     policy_kwargs = parse_policy_kwargs(params.get("policy_kwargs"))
-    model = ALGOS[algo](policy, env, policy_kwargs=policy_kwargs, seed=seed, **algo_kwargs)
-    return model, env, build_callbacks(params.get("callback")), resolved
+    callbacks = build_callbacks(params.get("callback"))
+    return ModelSettings(params.get("policy", "MlpPolicy"), policy_kwargs, kwargs, callbacks, resolved)

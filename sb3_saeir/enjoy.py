@@ -20,13 +20,14 @@ import numpy as np
 from sb3_saeir.command_line import OneLineParser, check_output_file, check_range, check_seed_option, count
 from sb3_saeir.common.atomic import atomic_path
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.common.run_files import CONFIG_FILE
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, ConfigError, load_hyperparams, load_yaml, parse_params
+from sb3_saeir.config import ALGOS, ConfigError, check_algo, load_hyperparams, load_yaml, parse_params
 from sb3_saeir.envs import list_tasks, make_task
 from sb3_saeir.evaluation import evaluate_multiagent_policy
-from sb3_saeir.experiment import find_model, model_method_mismatch
+from sb3_saeir.experiment import model_method_mismatch
+from sb3_saeir.run.files import CONFIG_FILE
+from sb3_saeir.run.folder import find_model
 
 __all__ = ["find_model", "main", "record_gif"]
 
@@ -108,8 +109,7 @@ def check_enjoy_arguments(args: argparse.Namespace) -> tuple[Path, dict[str, Any
     :raises FileNotFoundError: when there is no model to load
     """
     set_num_threads(args.num_threads)
-    if args.algo not in ALGOS:
-        raise ConfigError(f"unknown algorithm {args.algo!r}; valid choices: {', '.join(sorted(ALGOS))}.")
+    check_algo(args.algo)
     if args.task not in list_tasks():
         raise ConfigError(f"unknown task {args.task!r}; valid choices: {', '.join(list_tasks())}.")
     check_range("-n/--n-episodes", args.n_episodes, 1)

@@ -3,15 +3,12 @@
 :class:`Experiment` is what ``python -m sb3_saeir.train``, the benchmark, ``python -m sb3_saeir.zoo train`` and the
 Optuna trials share, as rl-zoo3's ``ExperimentManager`` is for rl-zoo3: the training and evaluation envs, the model
 from the packaged (or given) config, its callbacks, ``learn`` and ``save``; a run in a folder is a
-:class:`~sb3_saeir.run.Run` of it. The saved-model checks and rl-zoo's run numbering
-(``<log-folder>/<algo>/<task>_<run>``) live here too.
+:class:`~sb3_saeir.run.run.Run` of it. The saved-model checks live here too.
 """
 
 from __future__ import annotations
 
 import inspect
-from collections.abc import Iterator
-from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -20,25 +17,22 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
-from sb3_saeir.common.run_files import BEST_MODEL_FILE, FINAL_MODEL
-from sb3_saeir.common.run_lock import RunFolderWatch
 from sb3_saeir.common.run_state import load_resume_state, read_zip_data, saved_policy_class
 from sb3_saeir.common.utils import MAX_SEED
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.config import (
     ALGOS,
     DEFAULT_N_GAMES,
-    ConfigError,
-    algorithm_kwargs,
+    ModelSettings,
     build_callbacks,
-    build_model,
+    check_algo,
     load_hyperparams,
+    loaded_network,
+    model_settings,
     parse_policy_kwargs,
 )
 from sb3_saeir.envs import get_task_spec
 
-# Policy keywords that the algorithm sets itself (from the env and its own ``normalize_values``), not a config.
-ALGORITHM_POLICY_KWARGS = ("n_agents", "normalize_values")
 # Seed offset of evaluation envs: evaluation games never replay the training games' seeds.
 EVAL_SEED_OFFSET = 10_000
 
@@ -58,7 +52,7 @@ MAX_EVAL_GAMES = 10
 
 class Experiment:
     """A method's config entry on a task: builds the envs and the model, trains and saves (nothing written but by
-    :meth:`save`: a run in a folder, with its evaluations and checkpoints, is a :class:`~sb3_saeir.run.Run`)::
+    :meth:`save`: a run in a folder, with its evaluations and checkpoints, is a :class:`~sb3_saeir.run.run.Run`)::
 
         experiment = Experiment("saeir_ppo", "cn-sparse-n3", seed=0, n_games=16)
         experiment.build()
@@ -83,8 +77,7 @@ class Experiment:
         n_games: int | None = None,
         num_cpus: int | None = None,
     ) -> None:
-        if algo not in ALGOS:
-            raise KeyError(f"Unknown algorithm {algo!r}. Valid choices: {', '.join(sorted(ALGOS))}.")
+        check_algo(algo)
         get_task_spec(task)  # an unknown id: a KeyError naming the registered tasks, here rather than at build()
         self.algo = algo
         self.task = task
@@ -118,7 +111,7 @@ class Experiment:
     # ------------------------------------------------------------------------------------------------ envs
     def make_env(self) -> VecEnv:
         """The training env: ``n_games`` games seeded from ``seed`` (a run monitors it into its folder:
-        :meth:`~sb3_saeir.run.Run.make_env`)."""
+        :meth:`~sb3_saeir.run.run.Run.make_env`)."""
         return make_multiagent_vec_env(
             self.task, n_games=self.n_games, seed=self.seed, num_cpus=self.num_cpus, **self.env_kwargs
         )
@@ -137,16 +130,30 @@ class Experiment:
         return env
 
     # ------------------------------------------------------------------------------------------------ model
-    def build(self, env: VecEnv | None = None, **model_kwargs: Any) -> BaseAlgorithm:
-        """Build the training env (unless given) and the model from the config.
+    def build(
+        self,
+        env: VecEnv | None = None,
+        verbose: int | None = None,
+        device: str | None = None,
+        tensorboard_log: str | None = None,
+    ) -> BaseAlgorithm:
+        """Build the training env (unless given) and the model from the config entry
+        (:func:`~sb3_saeir.config.model_settings`: its ``policy`` and ``policy_kwargs``, every algorithm argument) with
+        the experiment's seed; the entry's ``callback`` entries become :attr:`config_callbacks` (passed to ``learn``
+        by :meth:`learn`).
 
-        :param env: use this multi-agent vec env instead of :meth:`make_env`
-        :param model_kwargs: algorithm arguments that override the config (``verbose``, ``device``, ...)
-        :return: the model (also ``self.model``; the env is ``self.env``)
+        :param env: use this multi-agent vec env (possibly wrapped) instead of :meth:`make_env`
+        :param verbose: the algorithm's verbosity (default: the config's, else the algorithm's)
+        :param device: torch device (default: the config's, else the algorithm's)
+        :param tensorboard_log: tensorboard log folder (default: the config's, else none)
+        :return: the model (also ``self.model``; the env is ``self.env``, the resolved config
+            ``self.resolved_hyperparams``)
         """
         self.env = env if env is not None else self.make_env()
-        self.model, _, self.config_callbacks, self.resolved_hyperparams = build_model(
-            self.algo, self.task, self.hyperparams, n_games=self.n_games, seed=self.seed, env=self.env, **model_kwargs
+        settings = self._settings(verbose=verbose, device=device, tensorboard_log=tensorboard_log)
+        arguments = settings.algorithm_kwargs
+        self.model = ALGOS[self.algo](
+            settings.policy, self.env, policy_kwargs=settings.policy_kwargs, seed=self.seed, **arguments
         )
         return self.model
 
@@ -157,41 +164,47 @@ class Experiment:
         device: str = "cpu",
         tensorboard_log: str | None = None,
         verbose: int | None = None,
+        requested_policy_kwargs: Any = None,
     ) -> BaseAlgorithm:
         """Load a saved model of this method onto the training env (``env``, else the one built before, else a new
         one from :meth:`make_env`), to continue training it with the config's hyperparameters, as rl-zoo3's ``-i``
         does: every algorithm argument of the config (``learning_rate``, ``n_steps``, ``n_epochs``, ``compile``, ...)
         and the experiment's seed apply to the loaded model; its network is the one it was saved with (``policy`` and
-        ``policy_kwargs`` do not apply: :func:`loaded_network`). A setting that cannot apply to the saved model is
-        refused by the algorithm's ``load``.
+        ``policy_kwargs`` do not apply: :func:`loaded_network`, whose record of that network
+        :attr:`resolved_hyperparams` then holds). A setting that cannot apply to the saved model is refused by the
+        algorithm's ``load``.
 
         :param path: the model zip
         :param env: use this multi-agent vec env as the training env
         :param device: torch device
         :param tensorboard_log: tensorboard log folder (default: the config's, else the saved model's)
         :param verbose: verbosity (default: the config's, else the saved model's)
+        :param requested_policy_kwargs: the command's ``-params policy_kwargs`` (``None``: not given), refused when it
+            asks for another network than the saved one
         """
-        self._use_env(env)
-        assert self.env is not None
-        settings = algorithm_kwargs(self.hyperparams, self.n_games, self.env)
-        settings["seed"] = self.seed
-        for name, value in (("tensorboard_log", tensorboard_log), ("verbose", verbose)):
-            if value is not None:
-                settings[name] = value
-        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, **settings)
-        self.resolved_hyperparams = {**self.hyperparams, "n_envs": self.n_games}
-        if "batch_size" in settings:
-            self.resolved_hyperparams["batch_size"] = settings["batch_size"]
-        return self.model
-
-    def _use_env(self, env: VecEnv | None) -> None:
-        """Take ``env`` as the training env (else keep the one built before, else make one) and the config's
-        callbacks, for a model loaded onto it."""
         if env is not None:
             self.env = env
         elif self.env is None:
             self.env = self.make_env()
-        self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
+        settings = self._settings(verbose=verbose, tensorboard_log=tensorboard_log)
+        self.model = ALGOS[self.algo].load(path, env=self.env, device=device, seed=self.seed, **settings.algorithm_kwargs)
+        network = loaded_network(self.model, path, requested_policy_kwargs, self.hyperparams.get("policy_kwargs"))
+        if network is not None:  # the run's record says which network trains
+            self.resolved_hyperparams["policy_kwargs"] = network
+        return self.model
+
+    def _settings(
+        self, verbose: int | None = None, device: str | None = None, tensorboard_log: str | None = None
+    ) -> ModelSettings:
+        """The config entry's model settings on the training env, with the arguments given here in place of the
+        config's; its callbacks and resolved entry become the experiment's."""
+        assert self.env is not None
+        settings = model_settings(self.hyperparams, self.n_games, self.env)
+        for name, value in (("verbose", verbose), ("device", device), ("tensorboard_log", tensorboard_log)):
+            if value is not None:
+                settings.algorithm_kwargs[name] = value
+        self.config_callbacks, self.resolved_hyperparams = settings.callbacks, settings.resolved
+        return settings
 
     def attach(self, model: BaseAlgorithm) -> BaseAlgorithm:
         """Take a model built elsewhere (by rl-zoo3's ``ExperimentManager``) as this experiment's, its env as the
@@ -212,7 +225,9 @@ class Experiment:
         :param device: torch device
         :param tensorboard_log: tensorboard log folder
         """
-        self._use_env(None)
+        if self.env is None:
+            self.env = self.make_env()
+        self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
         # the checkpoint's own settings; the config's compile (a setting of the machine, not saved) applies
         settings = {"compile": self.hyperparams["compile"]} if "compile" in self.hyperparams else {}
         self.model = ALGOS[self.algo].load(
@@ -328,178 +343,3 @@ def model_method_mismatch(path: str | Path, algo: str, task: str, hyperparams: d
         f"{path} is a model with {policy} and intrinsic_reward={intrinsic!r} ({hint}), not one of {algo} "
         f"({expected[0]}, intrinsic_reward={expected[1]!r})."
     )
-
-
-# ---------------------------------------------------------------------------------------------------- run folders
-def numbered_paths(folder: str | Path, prefix: str, suffix: str = "") -> dict[int, Path]:
-    """The paths ``<folder>/<prefix><number><suffix>`` by their number (other names are left out)."""
-    found = {}
-    for path in Path(folder).glob(f"{prefix}*{suffix}"):
-        number = path.name[len(prefix) : len(path.name) - len(suffix)]
-        if number.isascii() and number.isdigit():  # "²" is a digit to str.isdigit, not to int()
-            found[int(number)] = path
-    return found
-
-
-def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]:
-    """Run folders ``<log_folder>/<algo>/<task>_<run>`` by run number."""
-    return {number: path for number, path in numbered_paths(Path(log_folder) / algo, f"{task}_").items() if path.is_dir()}
-
-
-def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
-    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering), not created: two
-    commands asking at once get the same one (:func:`claimed_run_folder` creates it exclusively)."""
-    return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
-
-
-@contextmanager
-def claimed_run_folder(log_folder: str | Path, algo: str, task: str) -> Iterator[Path]:
-    """Create the run folder ``<log_folder>/<algo>/<task>_<run>`` with the first unused run number, exclusively
-    (``os.mkdir`` fails on a folder that exists: the next number is tried), so that runs started together in one log
-    folder get different numbers. If the block raises (a bad setting found while building), the folder and the
-    parents created for it are removed again, when still empty: a refused command leaves nothing behind.
-
-    :param log_folder: the log folder (``-f``)
-    :param algo: the method
-    :param task: the task
-    :return: the run's folder, created and empty
-    """
-    parent = Path(log_folder) / algo
-    in_the_way = next((path for path in (parent, *parent.parents) if path.exists() and not path.is_dir()), None)
-    if in_the_way is not None:
-        raise ConfigError(
-            f"-f {log_folder}: {in_the_way} is a file, where a folder of the runs ({parent}) must go; move that file "
-            "away or give another -f."
-        )
-    created = [parent, *parent.parents]
-    created = created[: next(index for index, folder in enumerate(created) if folder.is_dir())]  # deepest first
-    parent.mkdir(parents=True, exist_ok=True)
-    number = max(numbered_paths(parent, f"{task}_"), default=0) + 1  # files counted too: their names are taken
-    while True:
-        folder = parent / f"{task}_{number}"
-        try:
-            folder.mkdir()
-            break
-        except FileExistsError:
-            number += 1
-    # what this command made, held open: another folder at the path (the run's was deleted and the user made one)
-    # cannot take the same inode, and is left alone
-    made = {path: RunFolderWatch(path) for path in (folder, *created)}
-    try:
-        yield folder
-    except BaseException:
-        for empty in (folder, *created):
-            with suppress(OSError):  # not empty (something was written: keep it)
-                if made[empty].change() is None:  # still the folder it made, in place
-                    empty.rmdir()
-        raise
-    finally:
-        for watch in made.values():
-            watch.close()
-
-
-def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | Path) -> Path:
-    """The run folder ``--resume`` names: the latest run of ``--algo`` on ``--task`` in ``--log-folder``, run ``N``,
-    or a run folder's path (a moved run).
-
-    :param log_folder: the log folder (``-f``)
-    :param algo: the method
-    :param task: the task
-    :param resume: ``--resume``'s value: a run number (0: the latest) or a run folder's path
-    :raises ~sb3_saeir.config.ConfigError: naming what is missing and the fix
-    """
-    if isinstance(resume, Path):
-        if resume.is_file():
-            raise ConfigError(
-                f"--resume {resume}: a file, not a run folder; give the folder that holds the run (such as "
-                f"logs/{algo}/{task}_1, with rl_model_<steps>_steps.zip and {task}/), or a run's number."
-            )
-        if not resume.is_dir():
-            raise ConfigError(
-                f"--resume {resume}: no such folder; give a run's number, or the path of a run folder such as "
-                f"logs/{algo}/{task}_1 (the folder holding rl_model_<steps>_steps.zip and {task}/)."
-            )
-        return resume
-    runs = run_numbers(log_folder, algo, task)
-    where = Path(log_folder) / algo
-    if not runs:
-        raise ConfigError(
-            f"--resume: no run of {algo} on {task} in {where}; start one without --resume (or, for a run "
-            "folder moved elsewhere, give its path: --resume FOLDER)."
-        )
-    number = resume or max(runs)
-    if number not in runs:
-        raise ConfigError(f"--resume {number}: no run {number} of {algo} on {task} in {where}; runs: {sorted(runs)}.")
-    return runs[number]
-
-
-def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:
-    """Path of a run's final (or best) model; ``exp_id=0`` means the latest run that has one.
-
-    :raises FileNotFoundError: naming the folder searched
-    """
-    runs = run_numbers(log_folder, algo, task)
-    if not runs:
-        raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo}.")
-    name = BEST_MODEL_FILE if load_best else FINAL_MODEL.format(task=task)
-    if exp_id:
-        if exp_id not in runs:
-            raise FileNotFoundError(f"no run {exp_id} of {algo} on {task}; runs: {sorted(runs)}.")
-        path = runs[exp_id] / name
-        if not path.is_file():
-            raise FileNotFoundError(f"{path} does not exist.")
-        return path
-    with_model = [runs[number] / name for number in sorted(runs) if (runs[number] / name).is_file()]
-    if not with_model:
-        raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo} has a {name}.")
-    return with_model[-1]
-
-
-def loaded_network(model: BaseAlgorithm, path: str | Path, requested: Any, configured: Any) -> str | None:
-    """``-i``: a loaded model trains the network it was saved with (SB3's ``load`` drops other ``policy_kwargs``
-    without a word). Refuse a ``-params policy_kwargs`` that asks for another network; return the loaded network's
-    ``policy_kwargs`` as a config writes them when the config's describe another network (the run's record then
-    says what trains), else ``None``.
-
-    :param model: the loaded model
-    :param path: where it was loaded from (``-i``)
-    :param requested: the command's ``-params policy_kwargs`` (``None``: not given)
-    :param configured: the config entry's ``policy_kwargs``
-    :raises ~sb3_saeir.config.ConfigError: naming the settings that cannot apply
-    """
-    in_config = parse_policy_kwargs(configured)
-    asked = parse_policy_kwargs(requested) if requested is not None else {}
-    saved = {
-        key: value
-        for key, value in (getattr(model, "policy_kwargs", {}) or {}).items()
-        if key not in ALGORITHM_POLICY_KWARGS or key in in_config or key in asked
-    }  # as a config writes them: without what the algorithm sets itself
-    defaults = {
-        name: parameter.default
-        for name, parameter in inspect.signature(type(model.policy).__init__).parameters.items()
-        if parameter.default is not inspect.Parameter.empty
-    }
-
-    def differing(kwargs: dict[str, Any], keys: set[str]) -> list[str]:
-        """The keys of ``keys`` whose value (a policy default where not given) differs from the loaded network's."""
-        return [key for key in sorted(keys) if kwargs.get(key, defaults.get(key)) != saved.get(key, defaults.get(key))]
-
-    keys = differing(asked, set(asked))
-    if keys:
-        wanted = ", ".join(f"{key}={kwarg_text(asked[key])}" for key in keys)
-        has = ", ".join(f"{key}={kwarg_text(saved.get(key, defaults.get(key)))}" for key in keys)
-        raise ConfigError(
-            f"-i {path}: -params policy_kwargs {wanted} cannot apply to the loaded model, whose network has {has}: a "
-            "loaded model trains the network it was saved with. Drop the policy_kwargs override, or start a new run "
-            "without -i."
-        )
-    if differing(in_config, set(in_config) | set(saved)):
-        return "dict(" + ", ".join(f"{key}={kwarg_text(value)}" for key, value in sorted(saved.items())) + ")"
-    return None
-
-
-def kwarg_text(value: Any) -> str:
-    """A policy keyword's value as a config writes it (``nn.Tanh`` for a torch module class)."""
-    if isinstance(value, type) and value.__module__.startswith("torch.nn"):
-        return f"nn.{value.__name__}"
-    return repr(value)

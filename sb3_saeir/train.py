@@ -1,8 +1,9 @@
 """rl-zoo style training from YAML configs: ``python -m sb3_saeir.train --algo saeir_ppo --task cn-sparse-n3``.
 
 A run goes into rl-zoo's folders, ``<log-folder>/<algo>/<task>_<run>/`` (a new run number each time, the folder
-created exclusively), and is a :class:`~sb3_saeir.run.Run` (:meth:`~sb3_saeir.run.Run.execute`): this module builds
-what differs, the settings of the command, the experiment and its model (or the ``-i`` model loaded). The files of a
+claimed: :class:`~sb3_saeir.run.folder.RunFolder`), and is a :class:`~sb3_saeir.run.run.Run`
+(:meth:`~sb3_saeir.run.run.Run.execute`): this module builds what differs, the settings of the command, the
+experiment and its model (or the ``-i`` model loaded). The files of a
 run folder: ``docs/guide/training.md``, "The run folder"; ``--resume``, Ctrl-C, a full disk and training a run longer:
 its "Stopping and resuming a run". ``--optimize`` tunes hyperparameters with Optuna (``sb3_saeir.hyperparams_opt``).
 """
@@ -34,7 +35,6 @@ from sb3_saeir.command_line import (
 )
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.stop_signals import (
     INTERRUPTED_EXIT_STATUS,
     ctrl_c_to_the_command,
@@ -47,16 +47,9 @@ from sb3_saeir.common.stop_signals import (
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.config import ALGOS, ConfigError, parse_params
 from sb3_saeir.envs import list_tasks
-from sb3_saeir.experiment import (
-    Experiment,
-    claimed_run_folder,
-    config_budget,
-    find_run_folder,
-    loaded_network,
-    model_method_mismatch,
-)
-from sb3_saeir.run import Run, RunOutput, RunStoppedError
-from sb3_saeir.run_record import RunSpec, check_run_folder_writable, config_record, stored_record
+from sb3_saeir.experiment import Experiment, config_budget, model_method_mismatch
+from sb3_saeir.run import Run, RunFolder, RunFolderInUseError, RunOutput, RunSpec, RunStoppedError
+from sb3_saeir.run.record import config_record
 
 __all__ = [
     "INTERRUPTED_EXIT_STATUS",
@@ -102,7 +95,7 @@ def _flag(option: str) -> str:
 
 
 def compared_options(command: dict[str, Any]) -> dict[str, Any]:
-    """The command's settings a resume must repeat beyond a :class:`~sb3_saeir.run.RunSpec`'s own fields, by flag
+    """The command's settings a resume must repeat beyond a :class:`~sb3_saeir.run.record.RunSpec`'s own fields, by flag
     (an option the command lacks, as in an older ``args.yml``, counts as its default)."""
     parser = make_parser()
     free = {*RESUME_FREE_OPTIONS, *OPTIMIZE_OPTIONS, *SPEC_OPTIONS}
@@ -110,16 +103,18 @@ def compared_options(command: dict[str, Any]) -> dict[str, Any]:
     return {_flag(option): command.get(option, parser.get_default(option)) for option in sorted(options)}
 
 
-def run_spec(args: argparse.Namespace, seed: int, n_timesteps: int, n_games: int, config: dict[str, Any]) -> RunSpec:
+def run_spec(
+    args: argparse.Namespace, params: dict[str, Any], seed: int, n_timesteps: int, n_games: int, config: dict[str, Any]
+) -> RunSpec:
     """The settings of the run a ``train`` command makes.
 
     :param args: the command
+    :param params: its ``-params`` overrides, parsed
     :param seed: the run's seed (drawn for ``--seed -1``)
     :param n_timesteps: its budget in agent-steps
     :param n_games: its games
     :param config: its resolved hyperparameters (the model's, after building)
     """
-    params = parse_params(args.params)
     options = compared_options(vars(args))
     return RunSpec(
         args.algo, args.task, seed, n_timesteps, n_games, args.eval_freq, args.eval_episodes, params, config, options
@@ -128,7 +123,7 @@ def run_spec(args: argparse.Namespace, seed: int, n_timesteps: int, n_games: int
 
 def legacy_train_record(stored_args: dict[str, Any], stored_config: dict[str, Any]) -> dict[str, Any]:
     """The settings record of a run folder written before ``spec.json`` (its ``<task>/args.yml`` and
-    ``<task>/config.yml``), as :func:`~sb3_saeir.run.spec_record` writes one."""
+    ``<task>/config.yml``), as :func:`~sb3_saeir.run.record.spec_record` writes one."""
     budget = stored_config.get("n_timesteps", stored_args.get("n_timesteps"))
     return {
         "algo": stored_args.get("algo"),
@@ -148,11 +143,11 @@ def train(args: argparse.Namespace) -> Path:
     """Train one run (or, with ``--resume``, continue one from its newest checkpoint that loads); returns its folder.
 
     Everything that can fail on a bad setting (config, env, model, saved model, the settings of the run resumed) is
-    built and checked before anything is written in the run folder; a new run's folder is claimed exclusively
-    (:func:`~sb3_saeir.experiment.claimed_run_folder`) and removed again when the command is refused, so a bad command
+    built and checked before anything is written in the run folder; a new run's folder is claimed
+    (:meth:`~sb3_saeir.run.folder.RunFolder.claim`) and removed again when the command is refused, so a bad command
     leaves nothing behind and runs started together get different numbers. The run itself is a
-    :class:`~sb3_saeir.run.Run`: a full disk stops it with a :class:`~sb3_saeir.run.RunStoppedError` naming the
-    checkpoint to resume from.
+    :class:`~sb3_saeir.run.run.Run`: a full disk stops it with a :class:`~sb3_saeir.run.run.RunStoppedError` naming
+    the checkpoint to resume from.
     """
     check_arguments(args)
     hyperparams = resolve_hyperparams(args)
@@ -165,14 +160,12 @@ def train(args: argparse.Namespace) -> Path:
     set_num_threads(args.num_threads)
     if args.resume is None:
         seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
-        with claimed_run_folder(args.log_folder, args.algo, args.task) as folder:  # removed if the command is refused
+        with RunFolder.claim(args.log_folder, args.algo, args.task) as folder:
             return _execute(args, hyperparams, folder, seed)
-    folder = find_run_folder(args.log_folder, args.algo, args.task, args.resume)
-    with RunFolderLock(folder) as lock:  # before anything is read for the run or written
-        check_run_folder_writable(folder)
-        stored = stored_record(folder, args.algo, args.task, legacy_train_record)
-        check_not_a_benchmark_run(folder, stored)
-        return _execute(args, hyperparams, folder, resumed_seed(args.seed, stored, folder), stored, lock)
+    with RunFolder.find(args.log_folder, args.algo, args.task, args.resume, legacy_train_record) as folder:
+        assert folder.record is not None
+        check_not_a_benchmark_run(folder.path, folder.record)
+        return _execute(args, hyperparams, folder, resumed_seed(args.seed, folder.record, folder.path))
 
 
 def check_not_a_benchmark_run(folder: Path, stored: dict[str, Any]) -> None:
@@ -202,41 +195,31 @@ def check_not_a_benchmark_run(folder: Path, stored: dict[str, Any]) -> None:
     )
 
 
-def _execute(
-    args: argparse.Namespace,
-    hyperparams: dict[str, Any],
-    folder: Path,
-    seed: int,
-    stored: dict[str, Any] | None = None,
-    lock: RunFolderLock | None = None,
-) -> Path:
+def _execute(args: argparse.Namespace, hyperparams: dict[str, Any], folder: RunFolder, seed: int) -> Path:
     """:func:`train`'s run in ``folder``: the experiment, the run's settings and how its model is built, then
-    :meth:`~sb3_saeir.run.Run.execute` (a resumed run with its ``stored`` record, under the ``lock`` it was read with).
-    """
+    :meth:`~sb3_saeir.run.run.Run.execute`."""
     n_timesteps = config_budget(hyperparams)
+    params = parse_params(args.params)
     set_random_seed(seed)
     experiment = Experiment(args.algo, args.task, hyperparams, seed=seed)
     run = Run(
-        folder,
-        run_spec(args, seed, n_timesteps, experiment.n_games, {}),
+        run_spec(args, params, seed, n_timesteps, experiment.n_games, {}),
         save_freq=args.save_freq if args.save_freq > 0 else sys.maxsize,  # never but on Ctrl-C
         command={**vars(args), "seed": seed},
         continue_model=bool(args.trained_agent),
     )
 
     def build(experiment: Experiment, env: VecEnv) -> None:
-        build_model(experiment, env, args)
+        build_command_model(experiment, env, args, params)
         run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))  # what spec.json records
 
     output = RunOutput(
         command_line=True, verbose=args.verbose, progress_bar=args.progress, callbacks=[BudgetEstimate(n_timesteps)]
     )
     model_path = run.execute(
+        folder,
         experiment,
         build,
-        resumed=stored,
-        by_path=isinstance(args.resume, Path),
-        lock=lock,
         output=output,
         announce=lambda run: announce_run(args, experiment, run, n_timesteps, seed),
     )
@@ -245,8 +228,8 @@ def _execute(
     stop_line = run.stop_line()
     if stop_line is not None:
         print(stop_line)
-        raise RunInterruptedError(folder, run.stop_signal)
-    return folder
+        raise RunInterruptedError(folder.path, run.stop_signal)
+    return folder.path
 
 
 def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_timesteps: int, seed: int) -> None:
@@ -260,33 +243,28 @@ def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_t
     if run.extended_from is not None:
         print(f"Training longer: budget {run.extended_from:,} -> {n_timesteps:,} agent-steps")
     if run.resume is not None:
-        remaining = run.resume.total_timesteps(n_timesteps) - run.resume.steps
+        remaining = run.target_timesteps - run.start_timesteps
         print(f"Resuming {run.folder} from {run.resume.checkpoint.name}: {remaining:,} agent-steps to go")
     elif args.n_timesteps is None:
         print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
-    note = budget_note(experiment, run, n_timesteps)
+    note = budget_note(experiment, run)
     if note:
         print(note)
     print(f"Log folder: {run.folder}")
 
 
-def budget_note(experiment: Experiment, run: Run, n_timesteps: int) -> str:
+def budget_note(experiment: Experiment, run: Run) -> str:
     """The note of a budget that is not a whole number of rollouts: training stops at the end of the rollout that
     reaches it, as SB3's ``learn`` does (``""`` when the budget ends a rollout).
 
     :param experiment: the run's experiment, its model built
-    :param run: the run, its resume point found
-    :param n_timesteps: the run's budget in agent-steps
+    :param run: the run, set up (where it starts and ends)
     """
     assert experiment.model is not None and experiment.env is not None
     n_steps, n_games = int(getattr(experiment.model, "n_steps", 1)), experiment.n_games
     n_agents = experiment.env.num_envs // n_games
     rollout = n_steps * experiment.env.num_envs
-    if run.resume is not None:
-        start, target = run.resume.steps, run.resume.total_timesteps(n_timesteps)
-    else:
-        start = experiment.model.num_timesteps if run.continue_model else 0
-        target = start + n_timesteps
+    start, target = run.start_timesteps, run.target_timesteps
     end = start + -(-(target - start) // rollout) * rollout  # the first rollout end at or past the target
     if end == target:
         return ""
@@ -297,27 +275,26 @@ def budget_note(experiment: Experiment, run: Run, n_timesteps: int) -> str:
     )
 
 
-def build_model(experiment: Experiment, env: VecEnv, args: argparse.Namespace) -> None:
-    """Build the model of the command on the run's training env, or load ``--trained-agent`` onto it.
+def build_command_model(experiment: Experiment, env: VecEnv, args: argparse.Namespace, params: dict[str, Any]) -> None:
+    """Build the model of the command on the run's training env, or load ``--trained-agent`` onto it (resumed too:
+    the record then names the same network; the checkpoint's model replaces it).
 
     :param experiment: the run's experiment
-    :param env: the run's training env (:meth:`~sb3_saeir.run.Run.make_env`)
+    :param env: the run's training env (:meth:`~sb3_saeir.run.run.Run.make_env`)
     :param args: the command
+    :param params: its ``-params`` overrides, parsed
     """
-    # -tb, else the config's tensorboard_log (passing None would switch the config's off)
-    tensorboard_log = args.tensorboard_log
-    if tensorboard_log is None:
-        tensorboard_log = experiment.hyperparams.get("tensorboard_log")
-    if args.trained_agent:  # resumed too: the record then names the same network (the checkpoint's model replaces it)
-        model = experiment.load(
-            args.trained_agent, env=env, device=args.device, tensorboard_log=tensorboard_log, verbose=args.verbose
+    if args.trained_agent:
+        experiment.load(
+            args.trained_agent,
+            env=env,
+            device=args.device,
+            tensorboard_log=args.tensorboard_log,
+            verbose=args.verbose,
+            requested_policy_kwargs=params.get("policy_kwargs"),
         )
-        requested = parse_params(args.params).get("policy_kwargs")
-        loaded = loaded_network(model, args.trained_agent, requested, experiment.hyperparams.get("policy_kwargs"))
-        if loaded is not None:
-            experiment.resolved_hyperparams["policy_kwargs"] = loaded
     else:
-        experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=tensorboard_log)
+        experiment.build(env=env, verbose=args.verbose, device=args.device, tensorboard_log=args.tensorboard_log)
 
 
 def make_parser() -> argparse.ArgumentParser:

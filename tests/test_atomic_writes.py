@@ -188,7 +188,7 @@ def write_evaluations(tmp_path, env):
 
 
 def write_args(tmp_path, env):
-    from sb3_saeir.run_record import save_run_config
+    from sb3_saeir.run.record import save_run_config
 
     save_run_config(tmp_path, {"n_steps": 10}, {"seed": 1, "params": None})
     path = tmp_path / "args.yml"
@@ -210,14 +210,14 @@ def write_monitor(tmp_path, env):
 
 
 def write_progress(tmp_path, env):
-    logger = progress_logger(tmp_path, None, 0)
+    logger = progress_logger(tmp_path / "progress.csv", None, 0)
     for step in range(50):
         logger.record("time/total_timesteps", step)
         logger.record("a/value", step)
         logger.dump(step)
     logger.close()
     path = tmp_path / "progress.csv"
-    logger = progress_logger(tmp_path, 49, 0)  # resumed at step 49: every row kept
+    logger = progress_logger(tmp_path / "progress.csv", 49, 0)  # resumed at step 49: every row kept
 
     def widen():
         logger.record("b/new_key", 1)
@@ -318,7 +318,7 @@ def test_a_save_through_a_symbolic_link_writes_the_file_it_points_to(tmp_path, e
 
 
 def test_args_file_is_still_plain_yaml(tmp_path):
-    from sb3_saeir.run_record import save_run_config
+    from sb3_saeir.run.record import save_run_config
 
     save_run_config(tmp_path, {"n_steps": 10}, {"seed": 3, "algo": "mappo"})
     assert yaml.safe_load((tmp_path / "args.yml").read_text()) == {"algo": "mappo", "seed": 3}

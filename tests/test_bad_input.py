@@ -293,7 +293,7 @@ def test_enjoy_without_runs_and_with_a_model_of_another_task(tmp_path, capsys):
 
 
 def test_enjoy_picks_the_latest_run_that_has_a_model(tmp_path):
-    from sb3_saeir.experiment import find_model
+    from sb3_saeir.run.folder import find_model
 
     for run, has_model in ((1, True), (2, False)):
         folder = tmp_path / "saeir_ppo" / f"cn-sparse-n3_{run}"

@@ -19,7 +19,7 @@ from sb3_saeir import benchmark, make_multiagent_vec_env
 from sb3_saeir.benchmark import RunSpec, execute_run, execution, main, run_folder
 from sb3_saeir.benchmark.cli import INTERRUPTED
 from sb3_saeir.config import ALGOS as ALGO_CLASSES
-from sb3_saeir.run import RunEvalCallback as BenchmarkEvalCallback
+from sb3_saeir.run.output import RunEvalCallback as BenchmarkEvalCallback
 
 ALGOS = ["mappo", "saeir_ppo", "rnd"]
 # 2 games x 3 agents: 6 agent-steps per vec step, 60 per rollout; evaluations at the first step >= k * 250

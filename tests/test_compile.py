@@ -208,15 +208,15 @@ def test_compile_flag_resume_and_loading_for_more_training(tmp_path):
     """``--compile on`` sets the config's ``compile``; it may differ at ``--resume``; the config's value reaches a
     model loaded to continue training (``-i``, ``--resume``), since it is not saved with the model."""
     from sb3_saeir.experiment import Experiment
-    from sb3_saeir.run_record import config_record, spec_differences, spec_record
+    from sb3_saeir.run.record import config_record, spec_differences, spec_record
     from sb3_saeir.train import make_parser, resolve_hyperparams, run_spec
 
     command = ["--algo", "mappo", "--task", "cn-sparse-n3"]
     with_compile = make_parser().parse_args([*command, "--compile", "on"])
     first_part = make_parser().parse_args(command)
     assert resolve_hyperparams(with_compile)["compile"] is True and "compile" not in resolve_hyperparams(first_part)
-    stored = spec_record(run_spec(first_part, 0, 1000, 8, config_record(resolve_hyperparams(first_part))))
-    planned = spec_record(run_spec(with_compile, 0, 1000, 8, config_record(resolve_hyperparams(with_compile))))
+    stored = spec_record(run_spec(first_part, {}, 0, 1000, 8, config_record(resolve_hyperparams(first_part))))
+    planned = spec_record(run_spec(with_compile, {}, 0, 1000, 8, config_record(resolve_hyperparams(with_compile))))
     assert spec_differences(stored, planned) == []
 
     env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0)

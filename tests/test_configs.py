@@ -7,7 +7,8 @@ import yaml
 from stable_baselines3 import PPO
 
 from sb3_saeir import MAPPO, SAEIR_PPO
-from sb3_saeir.config import ALGOS, build_model, config_dir, load_hyperparams, parse_policy_kwargs
+from sb3_saeir.config import ALGOS, config_dir, load_hyperparams, parse_policy_kwargs
+from sb3_saeir.experiment import Experiment
 
 CONFIG_ENTRIES = [
     pytest.param(path.stem, task, marks=[pytest.mark.football] if task.startswith("grf-") else [])
@@ -23,7 +24,8 @@ def test_every_method_has_a_config():
 
 @pytest.mark.parametrize("algo, task", CONFIG_ENTRIES)
 def test_config_entry_builds(algo, task):
-    model, env, _, resolved = build_model(algo, task, n_games=2, seed=0)
+    experiment = Experiment(algo, task, n_games=2)
+    model, env, resolved = experiment.build(), experiment.env, experiment.resolved_hyperparams
     params = load_hyperparams(algo, task)
     assert env.n_agents == params["env_kwargs"]["N"]
     assert model.learning_rate == params["learning_rate"]
@@ -36,7 +38,8 @@ def test_config_entry_builds(algo, task):
 
 @pytest.mark.parametrize("algo", sorted(ALGOS))
 def test_every_method_trains_two_iterations_from_its_config(algo):
-    model, env, callbacks, _ = build_model(algo, "cn-sparse-n3", n_games=2, seed=0)
+    experiment = Experiment(algo, "cn-sparse-n3", n_games=2)
+    model, env, callbacks = experiment.build(), experiment.env, experiment.config_callbacks
     if isinstance(model, PPO):  # IPPO: the whole-rollout batch follows the game count
         assert model.batch_size == model.n_steps * env.num_envs
     model.learn(2 * model.n_steps * env.num_envs, callback=callbacks)
@@ -110,7 +113,8 @@ def test_missing_entry_and_unknown_algo():
 def test_intrinsic_kwargs_string_or_dict(value, variant):
     """``-params "intrinsic_kwargs:dict(variant='paper')"`` is evaluated like rl-zoo's ``policy_kwargs`` strings."""
     params = {**load_hyperparams("saeir_ppo", "cn-sparse-n3"), "intrinsic_kwargs": value}
-    model, env, _, _ = build_model("saeir_ppo", "cn-sparse-n3", params, n_games=2, seed=0)
+    experiment = Experiment("saeir_ppo", "cn-sparse-n3", params, n_games=2)
+    model, env = experiment.build(), experiment.env
     assert model.intrinsic_kwargs == {"variant": variant}
     env.close()
 

@@ -217,10 +217,10 @@ def refuse_writes_in(monkeypatch, folder):
 
 
 def test_unwritable_run_folder_names_the_folder_or_the_file(tmp_path, monkeypatch):
-    """:func:`~sb3_saeir.run_record.check_run_folder_writable` (the one check of ``train``, ``zoo train`` and the
+    """:func:`~sb3_saeir.run.folder.check_run_folder_writable` (the one check of ``train``, ``zoo train`` and the
     benchmark), with the permission probe answering as for a user without the permission."""
     from sb3_saeir.config import ConfigError
-    from sb3_saeir.run_record import check_run_folder_writable, unwritable_run_folder
+    from sb3_saeir.run.folder import check_run_folder_writable, unwritable_run_folder
 
     (tmp_path / "resume.log").write_text("")
     assert unwritable_run_folder(tmp_path) == ""

@@ -9,7 +9,8 @@ import torch as th
 from sb3_saeir import MAPPO, SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.buffers import split_by_valid_length, valid_rows
 from sb3_saeir.common.utils import NotABoolError
-from sb3_saeir.config import build_model, load_hyperparams
+from sb3_saeir.config import load_hyperparams
+from sb3_saeir.experiment import Experiment
 from tests.test_save_load import deterministic_actions, observation_sequence
 
 FEED_FORWARD = dict(hidden_size=8, recurrent=False)
@@ -113,7 +114,8 @@ def test_config_and_params_spelling():
     """From a config or ``-params policy_kwargs:"dict(recurrent=False)"``: the config's policy_kwargs string."""
     config = load_hyperparams("mappo", "cn-sparse-n3")
     config["policy_kwargs"] = config["policy_kwargs"].replace(")", ", recurrent=False)")
-    model, env, _, _ = build_model("mappo", "cn-sparse-n3", config, n_games=2, seed=0)
+    experiment = Experiment("mappo", "cn-sparse-n3", config, n_games=2)
+    model, env = experiment.build(), experiment.env
     assert model.policy.feed_forward and not [name for name in model.policy.state_dict() if ".gru." in name]
     env.close()
 
@@ -123,7 +125,8 @@ def test_feed_forward_smoke_training_on_navigation():
     games, 4 iterations): finite losses, the policy sharpens (entropy falls) and the critic's value loss falls."""
     config = load_hyperparams("mappo", "cn-sparse-n3")
     config["policy_kwargs"] = config["policy_kwargs"].replace(")", ", recurrent=False)")
-    model, env, _, _ = build_model("mappo", "cn-sparse-n3", config, n_games=16, seed=0)
+    experiment = Experiment("mappo", "cn-sparse-n3", config, n_games=16)
+    model, env = experiment.build(), experiment.env
     logs = []
 
     def record(model):

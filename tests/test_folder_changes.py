@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-from sb3_saeir.common.run_lock import RunFolderWatch
+from sb3_saeir.run.lock import RunFolderWatch
 from sb3_saeir.train import main as train_main
 
 REPO = Path(__file__).parent.parent

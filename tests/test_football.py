@@ -13,9 +13,10 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 from sb3_saeir import SAEIR_PPO, make_multiagent_vec_env
 from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY
-from sb3_saeir.config import build_model
+from sb3_saeir.config import load_hyperparams
 from sb3_saeir.envs import get_task_spec, list_tasks, make_task
 from sb3_saeir.envs.football import ACTIVE_PLAYER_SLICE, FootballEnv, FootballNotInstalledError
+from sb3_saeir.experiment import Experiment
 
 pytestmark = pytest.mark.football
 
@@ -265,7 +266,10 @@ def test_saeir_ppo_trains_two_iterations():
 @pytest.mark.parametrize("algo", ["saeir_ppo", "mappo"])
 def test_paper_config_trains(algo):
     """The packaged football config (paper hyperparameters) with 2 games and a 20-step buffer: two iterations."""
-    model, env, callbacks, resolved = build_model(algo, "grf-3v1-keeper", n_games=2, seed=0, n_steps=20)
+    config = {**load_hyperparams(algo, "grf-3v1-keeper"), "n_steps": 20}
+    experiment = Experiment(algo, "grf-3v1-keeper", config, n_games=2)
+    model, env, callbacks = experiment.build(), experiment.env, experiment.config_callbacks
+    resolved = experiment.resolved_hyperparams
     assert (model.n_epochs, model.learning_rate, resolved["n_envs"]) == (15, 5e-4, 2)
     model.learn(2 * 20 * env.num_envs, callback=callbacks)
     assert model.num_timesteps == 2 * 20 * env.num_envs

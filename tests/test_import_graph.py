@@ -34,13 +34,36 @@ ALGORITHM_MODULES = (
     "sb3_saeir.config",
     "sb3_saeir.command_line",
     "sb3_saeir.run",
-    "sb3_saeir.run_output",
-    "sb3_saeir.run_record",
+    "sb3_saeir.run.output",
+    "sb3_saeir.run.record",
     "sb3_saeir.experiment",
     "sb3_saeir.train",
     "sb3_saeir.benchmark",
     "sb3_saeir.zoo",
 )
+
+# The run wing (a run in the folder it owns) stands above the experiment and below the commands: the modules under it
+# reach none of the commands, the layers under it import nothing of it, and its lock is its own.
+RUN_WING = "sb3_saeir.run"
+COMMANDS = (
+    "sb3_saeir.train",
+    "sb3_saeir.benchmark",
+    "sb3_saeir.zoo",
+    "sb3_saeir.enjoy",
+    "sb3_saeir.command_line",
+    "sb3_saeir.hyperparams_opt",
+)
+BELOW_THE_RUN_WING = (
+    "sb3_saeir.common",
+    "sb3_saeir.envs",
+    "sb3_saeir.mappo",
+    "sb3_saeir.saeir_ppo",
+    "sb3_saeir.intrinsic",
+    "sb3_saeir.config",
+    "sb3_saeir.experiment",
+    "sb3_saeir.evaluation",
+)
+RUN_LOCK = "sb3_saeir.run.lock"
 
 Graph = dict[str, set[str]]
 
@@ -242,6 +265,29 @@ def test_env_layer_reaches_no_algorithm_module() -> None:
     found = forbidden_paths(graph, ENV_LAYER, ALGORITHM_MODULES)
     chains = {module: " -> ".join(path) for module, path in found.items()}
     assert not found, f"the env layer imports the algorithm's modules: {chains}"
+
+
+def test_the_run_wing_reaches_no_command() -> None:
+    reached = forbidden_paths(import_graph(), RUN_WING, COMMANDS)
+    assert not reached, f"the run wing reaches command modules: {reached}"
+
+
+def test_no_layer_below_the_run_wing_imports_it() -> None:
+    graph = import_graph()
+    below = {
+        module: sorted(target for target in targets if is_in_package(target, RUN_WING))
+        for module, targets in graph.items()
+        if any(is_in_package(module, layer) for layer in BELOW_THE_RUN_WING)
+    }
+    assert not {module: targets for module, targets in below.items() if targets}
+
+
+def test_only_the_run_wing_takes_a_run_folders_lock() -> None:
+    """Callers hand a :class:`~sb3_saeir.run.folder.RunFolder` over; none locks a folder itself."""
+    takers = sorted(
+        module for module, targets in import_graph().items() if RUN_LOCK in targets and not is_in_package(module, RUN_WING)
+    )
+    assert takers == []
 
 
 def test_importing_common_alone_registers_the_packaged_tasks() -> None:

@@ -106,10 +106,10 @@ def test_a_run_started_while_this_one_builds_takes_the_next_number(tmp_path, mon
 def test_a_run_that_claims_the_number_between_choice_and_creation_gets_the_next(tmp_path, monkeypatch, capsys):
     """Another command creates the run folder this one has just chosen, before this one creates it: this one takes the
     next number and leaves the other's folder alone (os.mkdir, not mkdir(exist_ok=True))."""
-    import sb3_saeir.experiment as experiment_module
+    import sb3_saeir.run.folder as folder_module
 
     parent = tmp_path / "logs" / "mappo"
-    numbered_paths = experiment_module.numbered_paths
+    numbered_paths = folder_module.numbered_paths
     raced = []
 
     def numbered_paths_then_another_run_claims(folder, prefix, suffix=""):
@@ -119,7 +119,7 @@ def test_a_run_that_claims_the_number_between_choice_and_creation_gets_the_next(
             (parent / f"{prefix}{raced[0]}").mkdir()
         return found
 
-    monkeypatch.setattr(experiment_module, "numbered_paths", numbered_paths_then_another_run_claims)
+    monkeypatch.setattr(folder_module, "numbered_paths", numbered_paths_then_another_run_claims)
     assert train_main(argv(tmp_path / "logs", *SHORT)) == 0, capsys.readouterr().err
     assert raced == [1]
     folders = {path.name: sorted(child.name for child in path.iterdir()) for path in parent.iterdir()}
@@ -158,13 +158,27 @@ def test_a_refused_command_leaves_no_run_folder(tmp_path, capsys):
 def test_a_failed_command_leaves_a_folder_made_in_place_of_its_own(tmp_path):
     """The run folder deleted while it trained, and the user making a folder at its path: the failed command removed
     the user's folder (and the emptied parent) as if it were the one it had made."""
-    from sb3_saeir.experiment import claimed_run_folder
+    from sb3_saeir.run import RunFolder
 
-    with pytest.raises(RuntimeError), claimed_run_folder(tmp_path / "logs", "mappo", "cn-sparse-n3") as folder:
-        folder.rmdir()
-        folder.mkdir()  # the user's
+    with pytest.raises(RuntimeError), RunFolder.claim(tmp_path / "logs", "mappo", "cn-sparse-n3") as claimed:
+        claimed.path.rmdir()
+        claimed.path.mkdir()  # the user's
+        (claimed.path / "notes.txt").write_text("the user's")
         raise RuntimeError("the run stopped")
-    assert folder.is_dir()
-    with pytest.raises(RuntimeError), claimed_run_folder(tmp_path / "other", "mappo", "cn-sparse-n3") as folder:
-        raise RuntimeError("refused")  # its own folder, empty: removed with the parents it made
+    assert (claimed.path / "notes.txt").is_file()
+    with pytest.raises(RuntimeError), RunFolder.claim(tmp_path / "other", "mappo", "cn-sparse-n3") as claimed:
+        (claimed.path / "cn-sparse-n3").mkdir()  # what rl-zoo3 writes before its setup fails (config.yml, args.yml)
+        (claimed.path / "cn-sparse-n3" / "config.yml").write_text("{}")
+        raise RuntimeError("refused")  # its own folder, the run not recorded: removed with the parents it made
     assert not (tmp_path / "other").exists()
+
+
+def test_a_claimed_folder_whose_run_recorded_itself_is_kept(tmp_path):
+    """A command that fails after its run wrote ``spec.json`` (a stop, a full disk) keeps the run folder: --resume
+    continues it."""
+    from sb3_saeir.run import RunFolder
+
+    with pytest.raises(KeyboardInterrupt), RunFolder.claim(tmp_path / "logs", "mappo", "cn-sparse-n3") as claimed:
+        (claimed.path / "spec.json").write_text("{}")
+        raise KeyboardInterrupt
+    assert (claimed.path / "spec.json").is_file()

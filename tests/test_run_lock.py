@@ -12,7 +12,7 @@ import pytest
 
 from sb3_saeir.benchmark import RunSpec, run_folder
 from sb3_saeir.benchmark import main as benchmark_main
-from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
+from sb3_saeir.run.lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.train import main as train_main
 from tests.run_folders import TASK, argv, snapshot, unfinished_copy
 
@@ -109,8 +109,8 @@ def test_a_folder_in_use_refuses_train_benchmark_and_zoo_and_nothing_is_written(
 
 
 def test_zoo_resume_of_a_folder_in_use_is_refused(tmp_path, capsys, monkeypatch):
-    """Refused by the launcher (``claim_resumed_run``), before rl-zoo3 sets anything up: the manager's setup, which
-    takes the lock of a new run, must not be reached (it would refuse too, after rl-zoo3's printing)."""
+    """Refused by the launcher (``claim_run_folder``), before rl-zoo3 sets anything up: the manager's setup must not
+    be reached."""
     pytest.importorskip("rl_zoo3")
     from sb3_saeir.zoo.launcher import main as zoo_main
     from sb3_saeir.zoo.manager import RunExperimentManager
@@ -147,7 +147,7 @@ def test_the_lock_is_released_and_taken_again():
 def test_a_stopped_holder_is_said_to_be_stopped(tmp_path):
     """A SIGSTOPped holder was named by pid only: "wait for it to end" would wait forever."""
     code = (
-        "import time; from sb3_saeir.common.run_lock import RunFolderLock; "
+        "import time; from sb3_saeir.run.lock import RunFolderLock; "
         f"RunFolderLock({str(tmp_path)!r}).acquire(); print('locked', flush=True); time.sleep(120)"
     )
     holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)

@@ -136,7 +136,7 @@ def test_the_benchmark_trains_a_finished_run_longer(tmp_path, capsys):
 
 
 def test_extension_record_keeps_earlier_extensions():
-    from sb3_saeir.run_record import extension_record
+    from sb3_saeir.run.record import extension_record
 
     stored = {"n_timesteps": 900, "config": {"n_timesteps": 900.0}, "extensions": [{"from": 450, "to": 900}]}
     record = extension_record(stored, 1800, {"timesteps": 900})

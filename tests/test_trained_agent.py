@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from sb3_saeir import MAPPO
-from sb3_saeir.experiment import Experiment, loaded_network
+from sb3_saeir.config import loaded_network
+from sb3_saeir.experiment import Experiment
 from sb3_saeir.train import main as train_main
 
 REPO = Path(__file__).parent.parent

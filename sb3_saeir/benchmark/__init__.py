@@ -1,6 +1,6 @@
 """Benchmark runner: methods x tasks x seeds -> ``runs.csv``, the paper's Table 1 layout and learning curves
 (``python -m sb3_saeir.benchmark``; the manual: ``docs/guide/benchmark.md``). Each run is a
-:class:`~sb3_saeir.run.Run` in ``<out>/runs/<algo>/<task>_s<seed>/`` (the files: ``docs/guide/training.md``, "The run
+:class:`~sb3_saeir.run.run.Run` in ``<out>/runs/<algo>/<task>_s<seed>/`` (the files: ``docs/guide/training.md``, "The run
 folder").
 
 The modules, one concern each: :mod:`~sb3_saeir.benchmark.runs` (the run folders, the comparison of ``spec.json``
@@ -30,7 +30,7 @@ from sb3_saeir.benchmark.statistics import (
     rliable_markdown,
     table_columns,
 )
-from sb3_saeir.run_record import RunSpec, read_rows, write_rows
+from sb3_saeir.run.record import RunSpec, read_rows, write_rows
 
 __all__ = [
     "RunSpec",

@@ -10,22 +10,36 @@ import time
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.benchmark.execution import RERUN_COPY, is_finished, run_all
+from sb3_saeir.benchmark.execution import RERUN_COPY, run_all
 from sb3_saeir.benchmark.reports import plot_system_entropy, report
-from sb3_saeir.benchmark.runs import ensure_spec_file, move_aside, parse_seeds, run_folder, stored_spec_differences
-from sb3_saeir.command_line import OneLineParser, budget, check_folder, check_params_against_flags, count
+from sb3_saeir.benchmark.runs import move_aside, parse_seeds, run_folder
+from sb3_saeir.command_line import OneLineParser, budget, check_folder, count
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.common.run_files import DONE_FILE, PROGRESS_FILE
-from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.stop_signals import (
     StopSignal,
     ctrl_c_to_the_command,
     interrupted_exit_status,
     stop_signals_as_ctrl_c,
 )
-from sb3_saeir.config import ALGOS, DEFAULT_N_GAMES, ConfigError, check_hyperparams, load_hyperparams, parse_params
-from sb3_saeir.run_record import RunSpec, check_run_folder_writable, read_spec_file, spec_record
+from sb3_saeir.config import (
+    ALGOS,
+    DEFAULT_N_GAMES,
+    ConfigError,
+    check_hyperparams,
+    check_params_against_flags,
+    load_hyperparams,
+    parse_params,
+)
+from sb3_saeir.run.files import DONE_FILE, PROGRESS_FILE
+from sb3_saeir.run.folder import (
+    check_run_folder_writable,
+    ensure_spec_file,
+    folders_in_use,
+    is_finished,
+    stored_spec_differences,
+)
+from sb3_saeir.run.record import RunSpec, read_spec_file, spec_record
 
 # The line Ctrl-C ends with (exit status 130).
 INTERRUPTED = "sb3_saeir.benchmark: interrupted: re-run the same command to resume"
@@ -39,7 +53,7 @@ def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only:
     """The message of a command whose runs differ from those already in ``out``: one line per run, then the fix.
 
     :param out: the benchmark folder
-    :param mismatches: each mismatching run with its differences (:func:`~sb3_saeir.run_record.spec_differences`)
+    :param mismatches: each mismatching run with its differences (:func:`~sb3_saeir.run.record.spec_differences`)
     :param report_only: the command only reports (``--rerun-changed`` does not apply)
     """
     lines = [f"sb3_saeir.benchmark: error: {len(mismatches)} run(s) in {out} were made with other settings:"]
@@ -54,23 +68,9 @@ def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only:
     return "\n".join(lines)
 
 
-def folders_in_use(folders: list[Path]) -> list[str]:
-    """Why each run folder that another process trains cannot be trained by this command (one refusal per folder;
-    the folders are only tried, not held: each run takes its own folder's lock when it starts)."""
-    busy = []
-    for folder in folders:
-        if not folder.is_dir():
-            continue
-        try:
-            RunFolderLock(folder).acquire().release()
-        except RunFolderInUseError as error:
-            busy.append(str(error))
-    return busy
-
-
 def unwritable_runs(out: Path, specs: list[RunSpec]) -> list[str]:
     """Why each run folder this command would go on writing cannot be written (a run that is not finished, or whose
-    budget the command raises: :func:`~sb3_saeir.run_record.check_run_folder_writable`), before anything is written.
+    budget the command raises: :func:`~sb3_saeir.run.record.check_run_folder_writable`), before anything is written.
 
     :param out: the benchmark folder
     :param specs: the command's runs
@@ -78,7 +78,7 @@ def unwritable_runs(out: Path, specs: list[RunSpec]) -> list[str]:
     problems = []
     for spec in specs:
         folder = run_folder(out, spec)
-        if not folder.is_dir() or is_finished(folder, _stored_or_none(folder), spec):
+        if not folder.is_dir() or is_finished(folder, _stored_or_none(folder), spec.n_timesteps):
             continue
         try:
             check_run_folder_writable(folder, spec.name, RERUN_COPY)

@@ -1,5 +1,6 @@
-"""Running the benchmark's runs: one run in its folder (a :class:`~sb3_saeir.run.Run`, :meth:`~sb3_saeir.run.Run.execute`),
-and many runs in local worker processes or on a Ray cluster, with Ctrl-C stopping them all.
+"""Running the benchmark's runs: one run in the folder it takes (a :class:`~sb3_saeir.run.run.Run` in a
+:class:`~sb3_saeir.run.folder.RunFolder`), and many runs in local worker processes or on a Ray cluster, with Ctrl-C
+stopping them all.
 """
 
 from __future__ import annotations
@@ -14,21 +15,11 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from sb3_saeir.benchmark.runs import ensure_spec_file, run_folder
-from sb3_saeir.common.run_files import DONE_FILE, EVALUATIONS_FILE
-from sb3_saeir.common.run_lock import RunFolderLock
-from sb3_saeir.run import Run
-from sb3_saeir.run_record import (
-    RunLog,
-    RunSpec,
-    check_run_folder_writable,
-    extended_budget,
-    read_rows,
-    read_spec_file,
-    spec_record,
-    write_done_file,
-    write_rows,
-)
+from sb3_saeir.benchmark.runs import run_folder
+from sb3_saeir.run import Run, RunFolder, RunSpec
+from sb3_saeir.run.files import DONE_FILE, EVALUATIONS_FILE
+from sb3_saeir.run.folder import is_finished
+from sb3_saeir.run.record import read_rows, read_spec_file, spec_record, write_done_file, write_rows
 
 # The benchmark checkpoints at every rollout start and keeps the newest two (one to fall back to).
 KEEP_CHECKPOINTS = 2
@@ -55,33 +46,14 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
     from sb3_saeir.experiment import Experiment
 
     th.set_num_threads(num_threads)
-    path = Path(folder)
-    with RunFolderLock(path) as lock:
-        ensure_spec_file(path, spec_record(spec))
-        stored = read_spec_file(path)
-        assert stored is not None
-        if is_finished(path, stored, spec):
-            return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(path / EVALUATIONS_FILE)}
-        check_run_folder_writable(path, spec.name, RERUN_COPY)
-        run = Run(
-            path,
-            spec,
-            save_freq=0,
-            keep_checkpoints=KEEP_CHECKPOINTS,
-            command=benchmark_command(spec),
-            log=RunLog(path, spec.name),
-        )
-        run.check_budget(stored)
+    with RunFolder.take(Path(folder), spec_record(spec), spec.name, RERUN_COPY) as taken:
+        if taken.finished(spec.n_timesteps):
+            return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(taken.path / EVALUATIONS_FILE)}
+        run = Run(spec, save_freq=0, keep_checkpoints=KEEP_CHECKPOINTS, command=benchmark_command(spec), name=spec.name)
         experiment = Experiment(spec.algo, spec.task, spec.resolved_config(), seed=spec.seed, n_games=spec.n_games)
-        run.execute(experiment, lock=lock)
+        run.execute(taken, experiment)
     assert run.evaluator is not None and run.clock is not None
     return {"spec": asdict(spec), "status": "done", "rows": run.evaluator.rows, "wall_s": run.clock.total_s, "done": run.done}
-
-
-def is_finished(folder: Path, stored: dict[str, Any] | None, spec: RunSpec) -> bool:
-    """Whether the run in ``folder`` is finished for ``spec``: it has its ``done.json`` and ``spec`` does not raise the
-    budget of its settings record ``stored`` (a larger budget trains it longer)."""
-    return (folder / DONE_FILE).is_file() and (stored is None or extended_budget(stored, spec.n_timesteps) is None)
 
 
 def benchmark_command(spec: RunSpec) -> dict[str, Any]:
@@ -178,7 +150,7 @@ def _run_on_ray(specs: list[RunSpec], out: Path, ray_address: str, num_threads: 
     pending = {}
     for spec in specs:
         local = run_folder(out, spec)
-        if is_finished(local, read_spec_file(local), spec):
+        if is_finished(local, read_spec_file(local), spec.n_timesteps):
             results.append({"spec": asdict(spec), "status": "skipped", "rows": read_rows(local / EVALUATIONS_FILE)})
         else:
             pending[remote.remote(spec, str(local), num_threads)] = spec

@@ -31,7 +31,6 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import CSVOutputFormat, KVWriter, Logger, filter_excluded_keys
 
 from sb3_saeir.common.atomic import atomic_file, atomic_write_text, keep_damaged
-from sb3_saeir.common.run_files import PROGRESS_FILE
 from sb3_saeir.common.utils import PACKAGE_VERSION
 
 # The entry of a checkpoint zip that holds the resume state (SB3's load ignores it).
@@ -528,27 +527,26 @@ def truncate_progress(
 
 
 def progress_logger(
-    folder: Path,
+    path: Path,
     done_steps: int | None,
     iteration_offset: int,
     output_formats: list[KVWriter] | None = None,
     expected_rows: int | None = None,
     log: Callable[[str], None] = print,
 ) -> Logger:
-    """The run's logger: ``progress.csv`` started anew (``done_steps`` ``None``) or continued after its rows up to the
-    checkpoint (:func:`truncate_progress`), plus ``output_formats`` (stdout, tensorboard, ...).
+    """The run's logger: its ``progress.csv`` started anew (``done_steps`` ``None``) or continued after its rows up to
+    the checkpoint (:func:`truncate_progress`), plus ``output_formats`` (stdout, tensorboard, ...).
 
-    :param folder: the run's folder
+    :param path: the run's ``progress.csv``
     :param done_steps: agent-steps of the checkpoint resumed from, ``None`` for a fresh start
     :param iteration_offset: rollouts done before the checkpoint
     :param output_formats: the logger's other writers
     :param expected_rows: rows ``progress.csv`` held at the checkpoint (its resume state's ``progress_rows``)
     :param log: where to say which rows cannot be restored
     """
-    path = folder / PROGRESS_FILE
     keys, rows = truncate_progress(path, done_steps, expected_rows, log) if done_steps is not None else ([], 0)
     formats: list[KVWriter] = [*(output_formats or []), ContinuedCSVOutputFormat(str(path), keys, rows)]
-    return ContinuedLogger(str(folder), formats, iteration_offset)
+    return ContinuedLogger(str(path.parent), formats, iteration_offset)
 
 
 # ---------------------------------------------------------------------------------------------------- wall time

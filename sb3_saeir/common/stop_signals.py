@@ -1,6 +1,6 @@
 """How a command line stops on a signal (``docs/guide/training.md``, "Signals"): Ctrl-C (SIGINT), SIGTERM and SIGHUP
 stop ``train``, ``zoo train`` and the benchmark at a checkpoint, and the command exits with 128 + the signal's number.
-:class:`~sb3_saeir.run.Run` handles them during training; :func:`stop_signals_as_ctrl_c` makes SIGTERM and SIGHUP a
+:class:`~sb3_saeir.run.run.Run` handles them during training; :func:`stop_signals_as_ctrl_c` makes SIGTERM and SIGHUP a
 ``KeyboardInterrupt`` for a command that stops on Ctrl-C (the benchmark driver).
 """
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from contextlib import nullcontext
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,8 +25,6 @@ from sb3_saeir.command_line import (
     resumed_seed,
 )
 from sb3_saeir.common.extras import MissingExtraError, require_extra
-from sb3_saeir.common.run_files import SPEC_FILE
-from sb3_saeir.common.run_lock import RunFolderInUseError, RunFolderLock
 from sb3_saeir.common.stop_signals import (
     ctrl_c_to_the_command,
     interrupted_exit_status,
@@ -35,9 +34,7 @@ from sb3_saeir.common.stop_signals import (
 )
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
-from sb3_saeir.experiment import find_run_folder
-from sb3_saeir.run import RunStoppedError
-from sb3_saeir.run_record import check_run_folder_writable, read_spec_file
+from sb3_saeir.run import RunFolder, RunFolderInUseError, RunStoppedError
 from sb3_saeir.zoo.registration import (
     WRAPPER_NAME,
     EnjoySession,
@@ -323,11 +320,12 @@ def _run_train(argv: Sequence[str]) -> int:
 
     command = ZooTrain(package_env, resume.resume)
     try:
-        if command.resume is not None:
-            command.folder, command.record, new_argv = claim_resumed_run(new_argv, command.resume, command)
-        sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
         with stop_signals_as_ctrl_c():
-            train_with_manager(command)
+            if package_env:  # the run's folder, held until the command ends (a refused new run's removed)
+                command.folder, new_argv = claim_run_folder(new_argv, resume.resume)
+            sys.argv = ["python -m sb3_saeir.zoo train", *new_argv]
+            with command.folder or nullcontext():
+                train_with_manager(command)
     except (ConfigError, RunFolderInUseError) as error:
         print(f"sb3_saeir.zoo: error: {error}", file=sys.stderr)
         return 2
@@ -338,9 +336,6 @@ def _run_train(argv: Sequence[str]) -> int:
         signum = stop_signal_number(stop)
         print(f"sb3_saeir.zoo: {signal_name(signum)}: stopped before the run started: nothing was written", file=sys.stderr)
         return interrupted_exit_status(signum)
-    finally:
-        if command.lock is not None:
-            command.lock.release()
     if command.stop_line is not None:
         print(command.stop_line)
         return interrupted_exit_status(command.stop_signal)
@@ -368,15 +363,16 @@ def train_with_manager(command: ZooTrain) -> None:
         rl_zoo3.train.ExperimentManager = original  # type: ignore[misc]
 
 
-def claim_resumed_run(argv: list[str], resume: int | Path, command: ZooTrain) -> tuple[Path, dict[str, Any], list[str]]:
-    """The run folder ``--resume`` names (the latest run, run ``N`` or a folder's path), locked (the lock kept in
-    ``command.lock``), its settings record, and rl-zoo3's arguments with the run's own seed: a folder that cannot be
-    written, a damaged record and a ``--seed`` other than the run's (or -1, rl-zoo3's default) are refused.
+def claim_run_folder(argv: list[str], resume: int | Path | None) -> tuple[RunFolder, list[str]]:
+    """The run's folder, held (:class:`~sb3_saeir.run.folder.RunFolder`): a new run's, claimed in rl-zoo3's
+    numbering (``<log-folder>/<algo>/<env>_<run>``), or the one ``--resume`` names (the latest run, run ``N`` or a
+    folder's path), with rl-zoo3's arguments given the run's own seed (a ``--seed`` other than the run's, or -1,
+    rl-zoo3's default, is refused).
 
     :param argv: rl-zoo3's ``train`` arguments
-    :param resume: ``--resume``'s value
-    :param command: the launcher's :class:`~sb3_saeir.zoo.manager.ZooTrain`, whose ``lock`` the folder's lock becomes
+    :param resume: ``--resume``'s value (``None``: a new run)
     :raises ~sb3_saeir.config.ConfigError: naming the problem and the fix
+    :raises ~sb3_saeir.run.lock.RunFolderInUseError: when another process trains the run
     """
     from rl_zoo3.utils import EnvironmentName
 
@@ -388,18 +384,18 @@ def claim_resumed_run(argv: list[str], resume: int | Path, command: ZooTrain) ->
             (["--seed"], {"type": int, "default": -1}),
         ]
     ).parse_known_args(argv)
-    folder = find_run_folder(options.log_folder, options.algo, EnvironmentName(options.env).gym_id, resume)
-    command.lock = RunFolderLock(folder).acquire()
-    check_run_folder_writable(folder)
+    task = EnvironmentName(options.env).gym_id
+    if resume is None:
+        return RunFolder.claim(options.log_folder, options.algo, task), argv
+    folder = RunFolder.find(options.log_folder, options.algo, task, resume)
     try:
-        record = read_spec_file(folder)
-    except ConfigError as error:
-        raise ConfigError(f"--resume: {error}") from None
-    if record is None:
-        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE}: it is not a run of this command.")
-    seed = resumed_seed(options.seed, record, folder)
+        assert folder.record is not None
+        seed = resumed_seed(options.seed, folder.record, folder.path)
+    except BaseException:
+        folder.close()
+        raise
     seed_free = _mini_parser([(["--seed"], {"default": None})]).parse_known_args(argv)[1]
-    return folder, record, [*seed_free, "--seed", str(seed)]
+    return folder, [*seed_free, "--seed", str(seed)]
 
 
 def _run_enjoy(argv: Sequence[str]) -> int:

@@ -1,13 +1,11 @@
 """The launcher's ``train``: rl-zoo3's ``ExperimentManager`` with the package's hooks (:class:`RunExperimentManager`),
-bound by :func:`sb3_saeir.zoo.launcher.train_with_manager`. On a package task the run is a :class:`~sb3_saeir.run.Run`
+bound by :func:`sb3_saeir.zoo.launcher.train_with_manager`. On a package task the run is a :class:`~sb3_saeir.run.run.Run`
 in rl-zoo3's run folder: rl-zoo3 builds the config, the env and the model, the run does the rest.
 """
 
 from __future__ import annotations
 
-import shutil
 import sys
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -18,34 +16,29 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
 from sb3_saeir.common.callbacks import BudgetEstimate
-from sb3_saeir.common.run_lock import RunFolderLock
-from sb3_saeir.config import ConfigError, load_yaml
-from sb3_saeir.experiment import Experiment, loaded_network
-from sb3_saeir.run import Run, RunOutput
-from sb3_saeir.run_record import RunSpec, config_record
+from sb3_saeir.config import ConfigError, load_yaml, loaded_network
+from sb3_saeir.experiment import Experiment
+from sb3_saeir.run import Run, RunFolder, RunOutput, RunSpec
+from sb3_saeir.run.record import config_record
 
 
 @dataclass
 class ZooTrain:
     """What the launcher knows of a ``train`` command before rl-zoo3 starts.
 
-    :param package_env: the env is a package task (the run is a :class:`~sb3_saeir.run.Run`); else rl-zoo3 trains
+    :param package_env: the env is a package task (the run is a :class:`~sb3_saeir.run.run.Run`); else rl-zoo3 trains
         as it does, but for the YAML loader
     :param resume: ``--resume``'s value (``None``: a new run)
-    :param folder: the run folder ``--resume`` names (:func:`~sb3_saeir.zoo.launcher.claim_resumed_run`)
-    :param record: its settings record
-    :param lock: the run folder's lock: the resumed folder's, or the new run's (taken by
-        :meth:`RunExperimentManager.setup_experiment`); the launcher gives it back
+    :param folder: on a package task, the run's folder (a new run's claimed, or the one ``--resume`` names:
+        :func:`~sb3_saeir.zoo.launcher.claim_run_folder`), held by the launcher
     :param stop_line: the line of a run stopped early (Ctrl-C, SIGTERM, SIGHUP; set by ``learn``:
-        :meth:`~sb3_saeir.run.Run.stop_line`)
+        :meth:`~sb3_saeir.run.run.Run.stop_line`)
     :param stop_signal: the signal that stopped it
     """
 
     package_env: bool
     resume: int | Path | None = None
-    folder: Path | None = None
-    record: dict[str, Any] | None = None
-    lock: RunFolderLock | None = None
+    folder: RunFolder | None = None
     stop_line: str | None = None
     stop_signal: int | None = None
 
@@ -54,9 +47,9 @@ class RunExperimentManager(ExperimentManager):
     """rl-zoo3's ``ExperimentManager`` for ``python -m sb3_saeir.zoo train``.
 
     It reads a YAML ``--conf-file`` with the package's loader (``5e-4`` is a float, a key given twice is refused). On
-    a package task: its setup runs in the run's folder (the one ``--resume`` continues, with its seed; a new run's
-    folder locked before rl-zoo3 creates it) and a failure removes the folders it created and becomes one line;
-    ``config.yml`` and ``args.yml`` are written for a new run only; ``learn`` is a :class:`~sb3_saeir.run.Run`, which
+    a package task: its setup runs in the run's folder that the launcher holds (claimed for a new run; the one
+    ``--resume`` continues, with its seed) and a failure becomes one line; ``config.yml`` and ``args.yml`` are
+    written for a new run only; ``learn`` is a :class:`~sb3_saeir.run.run.Run`, which
     saves the final model itself.
 
     :param args: rl-zoo3's ``ExperimentManager`` arguments
@@ -68,10 +61,11 @@ class RunExperimentManager(ExperimentManager):
         super().__init__(*args, **kwargs)
         self.zoo_train = zoo_train
         self.saeir_config: dict[str, Any] = {}
-        if zoo_train.folder is not None:  # the resumed run's folder and seed, not a new run folder
-            self.save_path = str(zoo_train.folder)
-            self.params_path = f"{zoo_train.folder}/{self.env_name}"
-            self.seed = int((zoo_train.record or {})["seed"])
+        if zoo_train.folder is not None:  # the run's folder (rl-zoo3's numbering, claimed), not one of rl-zoo3's own
+            self.save_path = str(zoo_train.folder.path)
+            self.params_path = f"{zoo_train.folder.path}/{self.env_name}"
+            if zoo_train.folder.record is not None:  # resumed: the run's own seed
+                self.seed = int(zoo_train.folder.record["seed"])
 
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
         """rl-zoo3's ``read_hyperparameters``, with a YAML file read by :func:`~sb3_saeir.config.load_yaml` instead of
@@ -88,28 +82,17 @@ class RunExperimentManager(ExperimentManager):
             rl_zoo3.exp_manager.yaml = rl_yaml
 
     def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
-        """rl-zoo3's setup (config, env, model) in the run's folder, holding its lock; on a package task a failure
-        removes the folders it created and becomes a :class:`~sb3_saeir.config.ConfigError` of one line."""
+        """rl-zoo3's setup (config, env, model) in the run's folder; on a package task a failure becomes a
+        :class:`~sb3_saeir.config.ConfigError` of one line (the launcher removes a new run's folder)."""
         if not self.zoo_train.package_env:
             return super().setup_experiment()
-        folders = [Path(self.log_path).parent, Path(self.log_path), Path(self.save_path)]
-        created = [folder for folder in folders if not folder.exists()]
-        new_run = self.zoo_train.lock is None
-        if new_run:  # before rl-zoo3 creates it: two commands racing for one run number do not share it
-            self.zoo_train.lock = RunFolderLock(self.save_path).acquire()
         try:
             result = super().setup_experiment()
             loaded = None
             if result is not None and self.trained_agent:  # -i: what trains (resumed too: the record compares it)
                 requested = (self.custom_hyperparams or {}).get("policy_kwargs")
                 loaded = loaded_network(result[0], self.trained_agent, requested, result[1].get("policy_kwargs"))
-        except BaseException as error:  # Ctrl-C too: nothing is left behind
-            if new_run and self.zoo_train.lock is not None:
-                self.zoo_train.lock.release()
-                self.zoo_train.lock = None
-            remove_created_folders(created)
-            if not isinstance(error, Exception):
-                raise
+        except Exception as error:
             raise ConfigError(f"cannot set up {self.algo} on {self.env_name}: {one_line(error)}") from error
         self.saeir_config = dict(result[1]) if result is not None else {}
         if loaded is not None:  # the run's record says which network trains
@@ -118,11 +101,11 @@ class RunExperimentManager(ExperimentManager):
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         """rl-zoo3's ``config.yml`` and ``args.yml``, for a new run only (a resumed run keeps its own)."""
-        if self.zoo_train.folder is None:
+        if self.zoo_train.folder is None or self.zoo_train.folder.record is None:
             super()._save_config(saved_hyperparams)
 
     def learn(self, model: BaseAlgorithm) -> None:
-        """On a package task, the run: :meth:`~sb3_saeir.run.Run.execute` in rl-zoo3's run folder, on the env and the
+        """On a package task, the run: :meth:`~sb3_saeir.run.run.Run.execute` in rl-zoo3's run folder, on the env and the
         model rl-zoo3 built (or loaded with ``-i``). Its evaluations (game episodes, the task's main metric; at the
         start, every ``--eval-freq // n_envs`` vec steps on the grid, at the end) and resumable checkpoints (every
         ``--save-freq // n_envs`` vec steps) take the place of rl-zoo3's evaluation and checkpoint callbacks (the
@@ -139,7 +122,7 @@ class RunExperimentManager(ExperimentManager):
             if isinstance(callback, EvalCallback):
                 callback.eval_env.close()
         callbacks = [c for c in self.callbacks if not isinstance(c, (EvalCallback, CheckpointCallback))]
-        resume, task = self.zoo_train.resume, self.env_name.gym_id
+        task = self.env_name.gym_id
 
         def period(freq: int) -> int:
             """rl-zoo3's callback period in agent-steps (0: off); its setup already made ``--eval-freq`` and
@@ -152,7 +135,6 @@ class RunExperimentManager(ExperimentManager):
             self.n_eval_episodes, {}, config_record(self.saeir_config), options,
         )  # fmt: skip
         run = Run(
-            Path(self.save_path),
             spec,
             save_freq=period(self.save_freq) or sys.maxsize,  # never but on Ctrl-C
             command=vars(self.args),
@@ -161,11 +143,10 @@ class RunExperimentManager(ExperimentManager):
         experiment = Experiment(self.algo, task, {"env_kwargs": dict(self.env_kwargs)}, seed=self.seed, n_games=self.n_envs)
         experiment.attach(model)
         callbacks.append(BudgetEstimate(spec.n_timesteps))
+        assert self.zoo_train.folder is not None
         run.execute(
+            self.zoo_train.folder,
             experiment,
-            resumed=self.zoo_train.record,
-            by_path=isinstance(resume, Path),
-            lock=self.zoo_train.lock,
             output=RunOutput(command_line=True, verbose=self.verbose, progress_bar=self.show_progress, callbacks=callbacks),
             announce=_announce_resume,
         )
@@ -188,13 +169,3 @@ def one_line(error: BaseException) -> str:
     text = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
     first = str(text).strip().splitlines()[0] if str(text).strip() else "(no message)"
     return first if isinstance(error, ConfigError) else f"{type(error).__name__}: {first}"
-
-
-def remove_created_folders(created: Sequence[Path]) -> None:
-    """Remove the folders a failed command created (listed outermost first): the innermost with what it holds, the
-    others only when they are left empty."""
-    for folder in reversed(created):
-        if folder == created[-1]:
-            shutil.rmtree(folder, ignore_errors=True)
-        elif folder.is_dir() and not any(folder.iterdir()):
-            folder.rmdir()

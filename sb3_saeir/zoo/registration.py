@@ -16,7 +16,6 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecEnvWrapper
 
-from sb3_saeir.common.run_files import MONITOR_PREFIX
 from sb3_saeir.common.vec_env import (
     EPISODE_METRICS_KEY,
     GroupedVecEnv,
@@ -25,6 +24,7 @@ from sb3_saeir.common.vec_env import (
     make_multiagent_vec_env,
 )
 from sb3_saeir.envs import list_tasks, make_task
+from sb3_saeir.run.files import MONITOR_PREFIX
 
 ENTRY_POINT = "sb3_saeir.zoo:SAEIRGameEnv"
 WRAPPER_NAME = "sb3_saeir.zoo.games_to_agents"

@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 
 from sb3_saeir.benchmark import main
-from sb3_saeir.run import RunEvalCallback as BenchmarkEvalCallback
+from sb3_saeir.run.output import RunEvalCallback as BenchmarkEvalCallback
 
 ARGV = [
     "--algos", "mappo", "saeir_ppo", "--tasks", "cn-sparse-n3", "--seeds", "1", "-n", "900", "--n-games", "2",

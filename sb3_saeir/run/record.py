@@ -1,7 +1,7 @@
 """What a run folder records, and how it is read and written: the settings record (:class:`RunSpec`, ``spec.json``)
 and its comparison on resume, ``done.json``, the evaluation rows, the run's log, rl-zoo3's ``<task>/config.yml`` and
 ``<task>/args.yml``, and the checkpoints a run can resume from. The layout: ``docs/guide/training.md``, "The run
-folder"; the file names: :mod:`sb3_saeir.common.run_files`.
+folder"; the file names: :mod:`sb3_saeir.run.files`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ import csv
 import io
 import json
 import math
-import os
 import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -21,24 +20,19 @@ import yaml
 
 from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
 from sb3_saeir.common.registry import VEC_ENV_KEYS, get_task_spec, list_tasks
-from sb3_saeir.common.run_files import (
+from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, read_zip_data, utc_stamp
+from sb3_saeir.common.utils import PACKAGE_VERSION
+from sb3_saeir.config import ConfigError, load_hyperparams
+from sb3_saeir.run.files import (
     ARGS_FILE,
-    BEST_MODEL_FILE,
     CHECKPOINT_NAME,
     CONFIG_FILE,
     DONE_FILE,
-    EVALUATIONS_FILE,
     LEGACY_CHECKPOINT,
-    MONITOR_PREFIX,
-    PROGRESS_FILE,
     RESUME_LOG,
-    SEGMENTS_FILE,
     SPEC_FILE,
+    numbered_paths,
 )
-from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, read_zip_data, utc_stamp
-from sb3_saeir.common.utils import PACKAGE_VERSION, unwritable_folder
-from sb3_saeir.config import ConfigError, load_hyperparams
-from sb3_saeir.experiment import numbered_paths
 
 # Settings of a RunSpec compared on resume, by their command-line names.
 SPEC_SETTINGS = {
@@ -445,52 +439,6 @@ class RunLog:
             file.write(f"{utc_stamp()} {message}\n")
 
 
-# ---------------------------------------------------------------------------------------------------- writable
-# The files of a run folder that a run goes on writing in place (appended to, or opened for writing); the others are
-# replaced atomically, which needs the folder itself writable.
-WRITTEN_IN_PLACE = (RESUME_LOG, PROGRESS_FILE, f"{MONITOR_PREFIX}.monitor.csv")
-
-
-def unwritable_run_folder(folder: Path) -> str:
-    """What of a run folder a run that goes on in it could not write, or ``""``: the folder itself (a probe file,
-    :func:`~sb3_saeir.common.utils.unwritable_folder`), or one of :data:`WRITTEN_IN_PLACE`.
-
-    :param folder: the run's folder (it exists)
-    :return: one clause naming what cannot be written, or ``""``
-    """
-    problem = unwritable_folder(folder)
-    if problem:
-        return problem
-    for path in (folder / name for name in WRITTEN_IN_PLACE):
-        if path.exists() and not os.access(path, os.W_OK):
-            return f"{path} is not writable"
-    for path in (folder / name for name in REPLACED_FILES):
-        if path.is_dir():  # the atomic writer cannot move a file onto it: the run failed at its first evaluation
-            return f"{path} is a folder, where the run writes a file"
-    return ""
-
-
-# The files a run replaces as a whole (written beside, then moved onto the name).
-REPLACED_FILES = (SPEC_FILE, DONE_FILE, SEGMENTS_FILE, EVALUATIONS_FILE, "evaluations.npz", BEST_MODEL_FILE)
-
-
-def check_run_folder_writable(folder: Path, refused: str = "--resume", copy: str = "--resume the copy") -> None:
-    """Refuse to go on with the run in ``folder`` when it cannot be written (:func:`unwritable_run_folder`), before
-    anything is printed or written (a run printed ``Resuming ...``, then failed on ``resume.log``).
-
-    :param folder: the run's folder, locked
-    :param refused: what is refused, the start of the message (``"--resume"``, a benchmark run's name)
-    :param copy: how the command continues a copy of the run, for the fix
-    :raises ~sb3_saeir.config.ConfigError: one line naming the folder, what cannot be written and the fix
-    """
-    problem = unwritable_run_folder(folder)
-    if problem:
-        raise ConfigError(
-            f"{refused}: the run in {folder} cannot go on there ({problem}); make the folder and its files writable "
-            f"(e.g. chmod -R u+w {folder}), or copy the run to a folder you can write and {copy}."
-        )
-
-
 # ---------------------------------------------------------------------------------------------------- checkpoints
 def checkpoint_steps(folder: str | Path) -> dict[int, Path]:
     """The resumable checkpoints of a run folder, by agent-steps: ``rl_model_<steps>_steps.zip``, and a benchmark
@@ -607,36 +555,6 @@ def read_run_file(path: Path) -> dict[str, Any]:
             "without --resume."
         )
     return content
-
-
-def stored_record(
-    folder: Path, algo: str, task: str, legacy_record: Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
-) -> dict[str, Any]:
-    """The settings record of the run in ``folder``: its ``spec.json``, or for a run of an older version its
-    ``<task>/args.yml`` and ``<task>/config.yml`` made into one by ``legacy_record``.
-
-    :param folder: the run's folder
-    :param algo: the method of the command
-    :param task: the task of the command (``<task>/`` holds the older files)
-    :param legacy_record: the record of an older run from its ``args.yml`` and ``config.yml``
-    :raises ~sb3_saeir.config.ConfigError: when the folder holds no run of this command, or its record is damaged
-    """
-    try:
-        record = read_spec_file(folder)
-    except ConfigError as error:
-        raise ConfigError(f"--resume: {error}") from None
-    if record is not None:
-        if (record.get("algo"), record.get("task")) != (algo, task):
-            raise ConfigError(
-                f"--resume: {folder} holds a run of {record.get('algo')} on {record.get('task')}: it is not a run of this "
-                "command."
-            )
-        return record
-    args_path = folder / task / ARGS_FILE
-    if not args_path.is_file():
-        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE} nor {task}/{ARGS_FILE}: it is not a run of this command.")
-    stored_args = read_run_file(args_path)
-    return legacy_record(stored_args, read_run_file(folder / task / CONFIG_FILE))
 
 
 def save_run_config(params_path: Path, config: dict[str, Any], command: dict[str, Any]) -> None:

@@ -1,10 +1,11 @@
-"""One training run in its folder: :class:`Run` owns the protocol (:meth:`Run.execute`: lock the folder, find the
-resume point, build, check the settings against the record, record them, train, close) and the run's evaluations,
-checkpoints, logger, Ctrl-C and final save. ``python -m sb3_saeir.train``, the benchmark and ``python -m sb3_saeir.zoo
-train`` build only what differs (the :class:`~sb3_saeir.run_record.RunSpec`, the experiment, how the model is built).
+"""One training run in its folder: :class:`Run` owns the protocol (:meth:`Run.execute`: find the resume point, build,
+check the settings against the record, record them, train, close) and the run's evaluations, checkpoints, logger,
+Ctrl-C and final save, in a :class:`~sb3_saeir.run.folder.RunFolder` that its caller claimed, found or took.
+``python -m sb3_saeir.train``, the benchmark and ``python -m sb3_saeir.zoo train`` build only what differs (the
+:class:`~sb3_saeir.run.record.RunSpec`, the experiment, how the model is built).
 
 The files of a run folder: ``docs/guide/training.md``, "The run folder"; what they record and how it is read:
-:mod:`sb3_saeir.run_record`.
+:mod:`sb3_saeir.run.record`.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import signal
 import time
 import zipfile
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager, suppress
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -23,18 +24,6 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import remove_stale_temporaries
-from sb3_saeir.common.run_files import (
-    CHECKPOINT_NAME,
-    CONFIG_FILE,
-    DONE_FILE,
-    EVALUATIONS_FILE,
-    FINAL_MODEL,
-    MONITOR_PREFIX,
-    SEGMENTS_FILE,
-    SHORTER_RUN_MODEL,
-    SPEC_FILE,
-)
-from sb3_saeir.common.run_lock import RunFolderLock, RunFolderWatch
 from sb3_saeir.common.run_state import (
     RunCheckpointCallback,
     SegmentClock,
@@ -49,8 +38,22 @@ from sb3_saeir.common.stop_signals import STOP_SIGNALS, handlers_installed, sign
 from sb3_saeir.common.vec_env import MultiAgentVecMonitor
 from sb3_saeir.config import ConfigError
 from sb3_saeir.experiment import Experiment, evaluation_seed
-from sb3_saeir.run_output import RunEvalCallback, RunFolderCheck, RunOutput
-from sb3_saeir.run_record import (
+from sb3_saeir.run.files import (
+    CHECKPOINT_NAME,
+    CONFIG_FILE,
+    DONE_FILE,
+    EVALUATIONS_FILE,
+    FINAL_MODEL,
+    MONITOR_PREFIX,
+    PROGRESS_FILE,
+    SEGMENTS_FILE,
+    SHORTER_RUN_MODEL,
+    SPEC_FILE,
+)
+from sb3_saeir.run.folder import RunFolder
+from sb3_saeir.run.lock import RunFolderWatch
+from sb3_saeir.run.output import RunEvalCallback, RunFolderCheck, RunOutput
+from sb3_saeir.run.record import (
     ResumePoint,
     RunLog,
     RunSpec,
@@ -85,38 +88,37 @@ class RunStoppedError(RuntimeError):
 class Run:
     """One training run in its folder (the files: ``docs/guide/training.md``, "The run folder").
 
-    Build it with a folder and a :class:`~sb3_saeir.run_record.RunSpec`, then :meth:`execute` it with an
-    :class:`~sb3_saeir.experiment.Experiment`: the whole run, from the folder's lock to the final save. Its steps
-    (:meth:`open` or :meth:`check_resumable`, :meth:`make_env`, :meth:`check_settings`, :meth:`write_spec`,
-    :meth:`start`, :meth:`train`) are public for a caller that needs them one by one.
+    Build it with the run's settings (a :class:`~sb3_saeir.run.record.RunSpec`), then :meth:`execute` it in a
+    :class:`~sb3_saeir.run.folder.RunFolder` with an :class:`~sb3_saeir.experiment.Experiment`: the whole run, from
+    its resume point to the final save.
 
-    :param folder: the run's folder
     :param spec: the run's settings
     :param save_freq: agent-steps between checkpoints (0: at every rollout start)
     :param keep_checkpoints: checkpoints kept (the newest; ``None``: all, as SB3's ``CheckpointCallback``)
     :param command: the command as ``<task>/args.yml`` records it (rl-zoo3's file)
     :param continue_model: the model was loaded to be trained on (``-i``): its agent-step count goes on
-    :param log: where the run says what happens (default: printed and appended to ``resume.log``)
+    :param name: the run's name in what it says (the benchmark's runs, side by side; ``""``: a command's one run)
     """
 
     def __init__(
         self,
-        folder: Path,
         spec: RunSpec,
         save_freq: int = 0,
         keep_checkpoints: int | None = None,
         command: dict[str, Any] | None = None,
         continue_model: bool = False,
-        log: Callable[[str], None] | None = None,
+        name: str = "",
     ) -> None:
-        self.folder = Path(folder)
         self.spec = spec
         self.save_freq = save_freq
         self.keep_checkpoints = keep_checkpoints
         self.command = dict(command or {})
         self.continue_model = continue_model
-        self.target_timesteps = spec.n_timesteps
-        self.log = log if log is not None else RunLog(self.folder)
+        self.name = name
+        self.start_timesteps = 0  # the model's agent-steps when this segment starts (from :meth:`execute`'s set-up)
+        self.target_timesteps = spec.n_timesteps  # the model's agent-steps when the run ends (the same)
+        self.folder = Path()  # the run folder's path, from :meth:`execute`
+        self.log: Callable[[str], None] = print  # printed, and appended to the folder's resume.log from :meth:`execute`
         self.resume: ResumePoint | None = None
         self.stored: dict[str, Any] | None = None
         self.extended_from: int | None = None
@@ -140,73 +142,61 @@ class Run:
     # ------------------------------------------------------------------------------------------------ the whole run
     def execute(
         self,
+        folder: RunFolder,
         experiment: Experiment,
         build: Callable[[Experiment, VecEnv], object] | None = None,
-        resumed: dict[str, Any] | None = None,
-        by_path: bool = False,
-        lock: RunFolderLock | None = None,
         output: RunOutput | None = None,
         announce: Callable[[Run], None] | None = None,
     ) -> Path:
-        """The whole run, holding the folder's lock: find where it continues (:meth:`check_resumable` for a run that
-        ``--resume`` continues, else :meth:`open`), make the training env (:meth:`make_env`), build or load the model
-        on it, refuse other settings than the record's (:meth:`check_settings`); then, nothing having been written
-        before, record the settings (:meth:`write_spec`), :meth:`start` and :meth:`train`. The experiment is closed at
-        the end, or when the run is refused.
+        """The whole run in ``folder``, which its caller holds: find where it continues (:meth:`check_resumable` for
+        a run that ``--resume`` continues; else :meth:`open`, after :meth:`check_budget` for a folder with a record),
+        make the training env (:meth:`make_env`), build or load the model on it, refuse other settings than the
+        record's (:meth:`check_settings`); then, nothing having been written before, record the settings
+        (:meth:`write_spec`), :meth:`start` and :meth:`train`. The experiment is closed at the end, or when the run is
+        refused.
 
+        :param folder: the run's folder, locked, its record read (:class:`~sb3_saeir.run.folder.RunFolder`)
         :param experiment: the run's experiment (its model is built here, unless it has one: a model rl-zoo3 built)
         :param build: builds (or loads) the model on the run's env, ``build(experiment, env)``; a bad setting raises.
             Default: :meth:`~sb3_saeir.experiment.Experiment.build`, unless the experiment has a model
-        :param resumed: the settings record of the run that ``--resume`` continues
-            (:func:`~sb3_saeir.run_record.stored_record`); ``None``: a new run, or one that goes on from the checkpoint
-            its folder has, if any (the benchmark, after :meth:`check_budget`)
-        :param by_path: ``--resume`` gave the run's folder by its path (``-f`` is not compared)
-        :param lock: the folder's lock, when the caller holds it already (it read the run's record under it; it gives
-            it back); ``None``: taken here and given back at the end
         :param output: how the run shows itself (default: quietly)
         :param announce: called once the run is set up and checked, before anything is written (what a command says
             about the run)
         :return: the final model's path
         :raises ~sb3_saeir.config.ConfigError: for a run that cannot be continued, a model that cannot be built, or
             other settings than the record's
-        :raises ~sb3_saeir.common.run_lock.RunFolderInUseError: when another process trains the run
         """
-        with ExitStack() as held:
-            if lock is None:
-                held.enter_context(RunFolderLock(self.folder))
-            self._set_up(experiment, build, resumed, by_path)
-            self.output = output if output is not None else RunOutput()
-            try:
-                with self._stop_signals():
-                    try:
-                        if announce is not None:
-                            announce(self)
-                        self.write_spec()
-                        self.start(experiment, self.output)
-                        return self.train()
-                    except KeyboardInterrupt:
-                        if not self.stopping_now:
-                            raise
-                        return self._stop_at_once()
-            finally:
-                experiment.close()
-                if self.watch is not None:
-                    self.watch.close()
+        self.folder = folder.path
+        self.log = RunLog(folder.path, self.name)
+        self._set_up(experiment, build, folder)
+        self.output = output if output is not None else RunOutput()
+        try:
+            with self._stop_signals():
+                try:
+                    if announce is not None:
+                        announce(self)
+                    self.write_spec()
+                    self.start(experiment, self.output)
+                    return self.train()
+                except KeyboardInterrupt:
+                    if not self.stopping_now:
+                        raise
+                    return self._stop_at_once()
+        finally:
+            experiment.close()
+            if self.watch is not None:
+                self.watch.close()
 
-    def _set_up(
-        self,
-        experiment: Experiment,
-        build: Callable[[Experiment, VecEnv], object] | None,
-        resumed: dict[str, Any] | None,
-        by_path: bool,
-    ) -> None:
+    def _set_up(self, experiment: Experiment, build: Callable[[Experiment, VecEnv], object] | None, folder: RunFolder) -> None:
         """:meth:`execute`'s checks, before anything is written: the resume point, the env and the model (what cannot
         be built is a :class:`~sb3_saeir.config.ConfigError`), the settings; the experiment is closed when one
         refuses."""
         try:
-            if resumed is not None:
-                self.check_resumable(resumed)
+            if folder.resumed and folder.record is not None:
+                self.check_resumable(folder.record)
             else:
+                if folder.record is not None:
+                    self.check_budget(folder.record)
                 self.open()
             try:
                 env = self.make_env(experiment)
@@ -220,11 +210,23 @@ class Run:
                 message = error.args[0] if isinstance(error, KeyError) and error.args else str(error)
                 algo, task = self.spec.algo, self.spec.task
                 raise ConfigError(f"cannot build {algo} on {task} with these settings: {message}") from error
-            if resumed is not None:
-                self.check_settings(resumed, by_path)
+            if folder.resumed and folder.record is not None:
+                self.check_settings(folder.record, folder.by_path)
+            self._set_bounds(experiment)
         except BaseException:
             experiment.close()
             raise
+
+    def _set_bounds(self, experiment: Experiment) -> None:
+        """Where this segment starts and the run ends, in the model's agent-steps: from the resume point, else from 0
+        (or a ``-i`` model's count) plus the budget."""
+        assert experiment.model is not None
+        if self.resume is not None:
+            self.start_timesteps = self.resume.steps
+            self.target_timesteps = self.resume.total_timesteps(self.spec.n_timesteps)
+        else:
+            self.start_timesteps = experiment.model.num_timesteps if self.continue_model else 0
+            self.target_timesteps = self.start_timesteps + self.spec.n_timesteps
 
     @property
     def continued(self) -> bool:
@@ -263,7 +265,7 @@ class Run:
         model); refuse a smaller budget than the record's (:meth:`check_budget`), a run with nothing to resume from,
         or a finished one whose budget the command does not raise.
 
-        :param stored: the run's settings record (:func:`~sb3_saeir.run_record.stored_record`)
+        :param stored: the run's settings record (:func:`~sb3_saeir.run.record.stored_record`)
         :raises ~sb3_saeir.config.ConfigError: naming the run and the fix
         """
         self.check_budget(stored)
@@ -301,7 +303,7 @@ class Run:
         """Refuse to continue the run with other settings than its record's (one line per setting; ``-f`` is not
         compared for a run given by its folder's path; a larger budget is an extension, :meth:`check_budget`).
 
-        :param stored: the run's settings record (:func:`~sb3_saeir.run_record.stored_record`)
+        :param stored: the run's settings record (:func:`~sb3_saeir.run.record.stored_record`)
         :param by_path: the run was given by its folder's path (``--resume FOLDER``)
         :raises ~sb3_saeir.config.ConfigError: naming what differs and the fix
         """
@@ -317,7 +319,7 @@ class Run:
     def write_spec(self) -> None:
         """Write ``spec.json`` (unless the folder has one), ``<task>/config.yml`` and ``<task>/args.yml``; for an
         extension (:meth:`check_budget`), record it in ``spec.json``
-        (:func:`~sb3_saeir.run_record.extension_record`) and keep the shorter run's final model as
+        (:func:`~sb3_saeir.run.record.extension_record`) and keep the shorter run's final model as
         ``<task>_<steps>_steps.zip`` (its ``done.json`` goes into the record)."""
         self.folder.mkdir(parents=True, exist_ok=True)
         if self.extended_from is not None and self.stored is not None:
@@ -397,10 +399,6 @@ class Run:
                 self.log(message)
         model = experiment.model
         done_steps = resume.steps if resume is not None else None
-        if resume is not None:
-            self.target_timesteps = resume.total_timesteps(self.spec.n_timesteps)
-        else:
-            self.target_timesteps = (model.num_timesteps if self.continue_model else 0) + self.spec.n_timesteps
         for stale in remove_stale_temporaries(self.folder):  # a killed segment's unfinished writes
             self.log(f"removed {stale.name}, a file a killed process was writing")
         self.clock = SegmentClock(self.folder / SEGMENTS_FILE, done_steps or 0, self.log)
@@ -409,7 +407,7 @@ class Run:
         expected_rows = state.get("progress_rows") if state is not None else None
         offset = (done_steps or 0) // rollout
         writers = self.output.writers(model, self.continued)
-        model.set_logger(progress_logger(self.folder, done_steps, offset, writers, expected_rows, self.log))
+        model.set_logger(progress_logger(self.folder / PROGRESS_FILE, done_steps, offset, writers, expected_rows, self.log))
         extras: dict[str, Any] = {}
         self.callbacks = []
         if self.spec.eval_freq > 0:
@@ -624,7 +622,7 @@ class Run:
 
     def check_folder(self) -> None:
         """Stop the run before it writes, when its folder was moved or deleted while it trained (:meth:`start`'s
-        :class:`~sb3_saeir.common.run_lock.RunFolderWatch`): a :class:`RunStoppedError` that says what happened and
+        :class:`~sb3_saeir.run.lock.RunFolderWatch`): a :class:`RunStoppedError` that says what happened and
         what can be resumed (:meth:`moved_message`). The old path is never made again."""
         change = self.folder_change()
         if change is not None:
@@ -633,7 +631,7 @@ class Run:
 
     def folder_change(self) -> str | None:
         """What happened to the run's folder while it trained: moved or deleted
-        (:meth:`~sb3_saeir.common.run_lock.RunFolderWatch.change`), or emptied (being deleted file by file: its
+        (:meth:`~sb3_saeir.run.lock.RunFolderWatch.change`), or emptied (being deleted file by file: its
         ``spec.json`` is gone); ``None`` while it is in place."""
         change = self.watch.change() if self.watch is not None else None
         if change is None and self.watch is not None and not (self.folder / SPEC_FILE).is_file():
@@ -642,7 +640,7 @@ class Run:
 
     def moved_message(self, change: str) -> str:
         """One line for a run whose folder was moved or deleted while it trained (``change``:
-        :meth:`~sb3_saeir.common.run_lock.RunFolderWatch.change`)."""
+        :meth:`~sb3_saeir.run.lock.RunFolderWatch.change`)."""
         assert self.experiment is not None and self.experiment.model is not None
         stopped = (
             f"the run folder {self.folder} was {change} while the run trained: the run stopped at "

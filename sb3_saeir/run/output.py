@@ -1,4 +1,4 @@
-"""What a :class:`~sb3_saeir.run.Run` shows and records while it trains: its evaluations (:class:`RunEvalCallback`:
+"""What a :class:`~sb3_saeir.run.run.Run` shows and records while it trains: its evaluations (:class:`RunEvalCallback`:
 ``evaluations.csv``, ``evaluations.npz``, ``best_model.zip``) and its output (:class:`RunOutput`: SB3's stdout and
 tensorboard writers, the caller's callbacks). The run folder's files: ``docs/guide/training.md``, "The run folder".
 """
@@ -16,10 +16,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import KVWriter
 from stable_baselines3.common.utils import configure_logger
 
-from sb3_saeir.common.run_files import EVALUATIONS_FILE
 from sb3_saeir.common.run_state import SegmentClock
 from sb3_saeir.evaluation import MultiAgentEvalCallback
-from sb3_saeir.run_record import RunSpec, same_row, write_rows
+from sb3_saeir.run.files import EVALUATIONS_FILE
+from sb3_saeir.run.record import RunSpec, same_row, write_rows
 
 
 # ---------------------------------------------------------------------------------------------------- evaluation
@@ -145,7 +145,7 @@ class RunOutput:
 
 
 class RunFolderCheck(BaseCallback):
-    """Calls ``check`` (:meth:`~sb3_saeir.run.Run.check_folder`) at each rollout start and step, before the other
+    """Calls ``check`` (:meth:`~sb3_saeir.run.run.Run.check_folder`) at each rollout start and step, before the other
     callbacks of the run write: a run whose folder was moved or deleted stops before it writes again.
 
     :param check: raises when the run must stop

@@ -1,0 +1,403 @@
+"""A run's folder with one owner: :class:`RunFolder` claims a new numbered folder, finds the one ``--resume``
+names, or takes a given one (the benchmark's); each way locks it, checks that a run that goes on can write it, and
+reads its settings record. ``python -m sb3_saeir.train``, the benchmark and ``python -m sb3_saeir.zoo train`` hand
+the folder to :meth:`~sb3_saeir.run.run.Run.execute`. rl-zoo's run numbering
+(``<log-folder>/<algo>/<task>_<run>``) lives here too. The layout: ``docs/guide/training.md``, "The run folder".
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Callable
+from contextlib import suppress
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from sb3_saeir.common.utils import unwritable_folder
+from sb3_saeir.config import ConfigError
+from sb3_saeir.run.files import (
+    ARGS_FILE,
+    BEST_MODEL_FILE,
+    CONFIG_FILE,
+    DONE_FILE,
+    EVALUATIONS_FILE,
+    FINAL_MODEL,
+    MONITOR_PREFIX,
+    PROGRESS_FILE,
+    RESUME_LOG,
+    SEGMENTS_FILE,
+    SPEC_FILE,
+    numbered_paths,
+)
+from sb3_saeir.run.lock import RunFolderInUseError, RunFolderLock, RunFolderWatch
+from sb3_saeir.run.record import extended_budget, read_run_file, read_spec_file, spec_differences, write_spec_file
+
+# How a command makes a settings record of a run of an older version (its <task>/args.yml and <task>/config.yml).
+LegacyRecord = Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
+
+
+class RunFolder:
+    """A run's folder, held by one command: locked (:class:`~sb3_saeir.run.lock.RunFolderLock`), writable, its settings
+    record read. Made by one of three ways in, and a context manager that gives the lock back at the end:
+
+    - :meth:`claim`: a new run's folder, ``<log-folder>/<algo>/<task>_<run>`` with the first unused run number, made
+      exclusively (runs started together get different numbers); a command refused before the run recorded itself
+      removes it again, with the parents made for it;
+    - :meth:`find`: the run that ``--resume`` names (the latest, run ``N``, or a folder's path), its record read;
+    - :meth:`take`: a given folder (the benchmark's ``<out>/runs/<algo>/<task>_s<seed>``), made when missing, its
+      record written when it has none and compared when it has one.
+
+    :param path: the folder
+    :param lock: its lock, held
+    :param record: the settings record of the run that goes on in it (``None``: a new run)
+    :param resumed: ``--resume`` continues the run: it must have a resume point, and its settings are compared
+    :param by_path: ``--resume`` gave the folder by its path (``-f`` is not compared)
+    :param made: the folders a claim made (the run's, then its parents, deepest first), watched, to remove when the
+        command is refused
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        lock: RunFolderLock,
+        record: dict[str, Any] | None = None,
+        resumed: bool = False,
+        by_path: bool = False,
+        made: dict[Path, RunFolderWatch] | None = None,
+    ) -> None:
+        self.path = path
+        self.lock = lock
+        self.record = record
+        self.resumed = resumed
+        self.by_path = by_path
+        self.made = made or {}
+
+    # ------------------------------------------------------------------------------------------------ ways in
+    @classmethod
+    def claim(cls, log_folder: str | Path, algo: str, task: str) -> RunFolder:
+        """Make and lock a new run's folder ``<log_folder>/<algo>/<task>_<run>`` with the first unused run number
+        (``os.mkdir`` fails on a folder that exists: the next number is tried).
+
+        :param log_folder: the log folder (``-f``)
+        :param algo: the method
+        :param task: the task
+        :raises ~sb3_saeir.config.ConfigError: when a file stands where a folder of the runs must go
+        """
+        parent = Path(log_folder) / algo
+        in_the_way = next((path for path in (parent, *parent.parents) if path.exists() and not path.is_dir()), None)
+        if in_the_way is not None:
+            raise ConfigError(
+                f"-f {log_folder}: {in_the_way} is a file, where a folder of the runs ({parent}) must go; move that "
+                "file away or give another -f."
+            )
+        parents = [parent, *parent.parents]
+        parents = parents[: next(index for index, folder in enumerate(parents) if folder.is_dir())]  # deepest first
+        parent.mkdir(parents=True, exist_ok=True)
+        number = max(numbered_paths(parent, f"{task}_"), default=0) + 1  # files counted too: their names are taken
+        while True:
+            path = parent / f"{task}_{number}"
+            try:
+                path.mkdir()
+                break
+            except FileExistsError:
+                number += 1
+        # what this command made, held open: another folder at the path (the run's was deleted and the user made one)
+        # cannot take the same inode, and is left alone
+        made = {folder: RunFolderWatch(folder) for folder in (path, *parents)}
+        claimed = cls(path, RunFolderLock(path), made=made)
+        try:
+            claimed.lock.acquire()
+        except BaseException:
+            claimed.close(refused=True)
+            raise
+        return claimed
+
+    @classmethod
+    def find(
+        cls, log_folder: str | Path, algo: str, task: str, resume: int | Path, legacy_record: LegacyRecord | None = None
+    ) -> RunFolder:
+        """Lock the run folder ``--resume`` names (:func:`find_run_folder`), check that the run can go on there
+        (:func:`check_run_folder_writable`) and read its settings record (:func:`stored_record`).
+
+        :param log_folder: the log folder (``-f``)
+        :param algo: the method of the command
+        :param task: the task of the command
+        :param resume: ``--resume``'s value: a run number (0: the latest) or a run folder's path
+        :param legacy_record: how the command reads a run of an older version (``None``: such a run is refused)
+        :raises ~sb3_saeir.config.ConfigError: naming what is missing or damaged and the fix
+        :raises ~sb3_saeir.run.lock.RunFolderInUseError: when another process trains the run
+        """
+        path = find_run_folder(log_folder, algo, task, resume)
+        found = cls(path, RunFolderLock(path).acquire(), resumed=True, by_path=isinstance(resume, Path))
+        try:  # before anything is read for the run or written
+            check_run_folder_writable(path)
+            found.record = stored_record(path, algo, task, legacy_record)
+        except BaseException:
+            found.close()
+            raise
+        return found
+
+    @classmethod
+    def take(cls, path: Path, planned: dict[str, Any], name: str = "", copy: str = "--resume the copy") -> RunFolder:
+        """Lock a given run folder (made when missing), write its settings record ``planned`` when it has none
+        (:func:`ensure_spec_file`), and check that a run that goes on can write it (not for a finished run, which
+        :meth:`finished` tells: it may stay read-only).
+
+        :param path: the run's folder
+        :param planned: the settings record of the run (:func:`~sb3_saeir.run.record.spec_record`)
+        :param name: the run's name, the start of a refusal
+        :param copy: how the command continues a copy of the run that cannot be written, for the fix
+        :raises ValueError: when the folder holds a run made with other settings
+        :raises ~sb3_saeir.config.ConfigError: when a run that goes on cannot write the folder
+        """
+        taken = cls(path, RunFolderLock(path).acquire())
+        try:
+            ensure_spec_file(path, planned)
+            taken.record = read_spec_file(path)
+            if not taken.finished(int(planned["n_timesteps"])):
+                check_run_folder_writable(path, name or str(path), copy)
+        except BaseException:
+            taken.close()
+            raise
+        return taken
+
+    # ------------------------------------------------------------------------------------------------ the run in it
+    def finished(self, n_timesteps: int) -> bool:
+        """Whether the run is finished for a budget of ``n_timesteps`` agent-steps: it has its ``done.json`` and the
+        budget does not raise its record's (a larger budget trains it longer).
+
+        :param n_timesteps: the command's budget
+        """
+        return is_finished(self.path, self.record, n_timesteps)
+
+    def close(self, refused: bool = False) -> None:
+        """Give the lock back. A claimed folder of a command ``refused`` before its run recorded itself (no
+        ``spec.json``) is removed with what it holds, and the parents made for it when they are left empty, each only
+        while it is still the folder the claim made, in place."""
+        if refused and not (self.path / SPEC_FILE).exists():
+            for folder, watch in self.made.items():
+                if watch.change() is not None:  # moved or deleted: not ours to remove any more
+                    continue
+                if folder == self.path:
+                    shutil.rmtree(folder, ignore_errors=True)
+                else:
+                    with suppress(OSError):  # not empty: another run's
+                        folder.rmdir()
+        self.lock.release()
+        for watch in self.made.values():
+            watch.close()
+        self.made = {}
+
+    def __enter__(self) -> RunFolder:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None, traceback: TracebackType | None) -> None:
+        self.close(refused=error is not None)
+
+
+def is_finished(path: Path, record: dict[str, Any] | None, n_timesteps: int) -> bool:
+    """Whether the run in ``path`` is finished for a budget of ``n_timesteps`` agent-steps: it has its ``done.json``
+    and the budget does not raise its settings record's (``record``; a larger budget trains it longer).
+
+    :param path: the run's folder
+    :param record: its settings record (``None``: none, or unread)
+    :param n_timesteps: the command's budget
+    """
+    return (path / DONE_FILE).is_file() and (record is None or extended_budget(record, n_timesteps) is None)
+
+
+def folders_in_use(folders: list[Path]) -> list[str]:
+    """Why each run folder that another process trains cannot be trained by this command (one refusal per folder;
+    the folders are only tried, not held: each run takes its folder when it starts, :meth:`RunFolder.take`).
+
+    :param folders: the folders (those missing are left out)
+    """
+    busy = []
+    for folder in folders:
+        if not folder.is_dir():
+            continue
+        try:
+            RunFolderLock(folder).acquire().release()
+        except RunFolderInUseError as error:
+            busy.append(str(error))
+    return busy
+
+
+# ---------------------------------------------------------------------------------------------------- run numbers
+def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]:
+    """Run folders ``<log_folder>/<algo>/<task>_<run>`` by run number."""
+    return {number: path for number, path in numbered_paths(Path(log_folder) / algo, f"{task}_").items() if path.is_dir()}
+
+
+def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
+    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering), not created: two
+    commands asking at once get the same one (:meth:`RunFolder.claim` makes it exclusively)."""
+    return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
+
+
+def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | Path) -> Path:
+    """The run folder ``--resume`` names: the latest run of ``--algo`` on ``--task`` in ``--log-folder``, run ``N``,
+    or a run folder's path (a moved run).
+
+    :param log_folder: the log folder (``-f``)
+    :param algo: the method
+    :param task: the task
+    :param resume: ``--resume``'s value: a run number (0: the latest) or a run folder's path
+    :raises ~sb3_saeir.config.ConfigError: naming what is missing and the fix
+    """
+    if isinstance(resume, Path):
+        if resume.is_file():
+            raise ConfigError(
+                f"--resume {resume}: a file, not a run folder; give the folder that holds the run (such as "
+                f"logs/{algo}/{task}_1, with rl_model_<steps>_steps.zip and {task}/), or a run's number."
+            )
+        if not resume.is_dir():
+            raise ConfigError(
+                f"--resume {resume}: no such folder; give a run's number, or the path of a run folder such as "
+                f"logs/{algo}/{task}_1 (the folder holding rl_model_<steps>_steps.zip and {task}/)."
+            )
+        return resume
+    runs = run_numbers(log_folder, algo, task)
+    where = Path(log_folder) / algo
+    if not runs:
+        raise ConfigError(
+            f"--resume: no run of {algo} on {task} in {where}; start one without --resume (or, for a run "
+            "folder moved elsewhere, give its path: --resume FOLDER)."
+        )
+    number = resume or max(runs)
+    if number not in runs:
+        raise ConfigError(f"--resume {number}: no run {number} of {algo} on {task} in {where}; runs: {sorted(runs)}.")
+    return runs[number]
+
+
+def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, load_best: bool = False) -> Path:
+    """Path of a run's final (or best) model; ``exp_id=0`` means the latest run that has one.
+
+    :raises FileNotFoundError: naming the folder searched
+    """
+    runs = run_numbers(log_folder, algo, task)
+    if not runs:
+        raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo}.")
+    name = BEST_MODEL_FILE if load_best else FINAL_MODEL.format(task=task)
+    if exp_id:
+        if exp_id not in runs:
+            raise FileNotFoundError(f"no run {exp_id} of {algo} on {task}; runs: {sorted(runs)}.")
+        path = runs[exp_id] / name
+        if not path.is_file():
+            raise FileNotFoundError(f"{path} does not exist.")
+        return path
+    with_model = [runs[number] / name for number in sorted(runs) if (runs[number] / name).is_file()]
+    if not with_model:
+        raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo} has a {name}.")
+    return with_model[-1]
+
+
+# ---------------------------------------------------------------------------------------------------- the record
+def stored_spec_differences(folder: Path, record: dict[str, Any]) -> list[str]:
+    """Why the run in ``folder`` cannot be continued or reported with the settings ``record`` (empty: it can, or the
+    folder holds nothing yet).
+
+    :param folder: the run's folder
+    :param record: :func:`~sb3_saeir.run.record.spec_record` of the planned run
+    """
+    try:
+        stored = read_spec_file(folder)
+    except ConfigError as error:  # not JSON, not text, or not an object of settings: what it says, then what follows
+        return [f"{str(error).split(';')[0]}: its settings are unknown"]
+    if stored is not None:
+        return spec_differences(stored, record)
+    if folder.is_dir() and any(folder.iterdir()):
+        return [f"no {SPEC_FILE} (made by an older version): its settings are unknown"]
+    return []
+
+
+def ensure_spec_file(folder: Path, record: dict[str, Any]) -> None:
+    """Write the run's ``spec.json`` unless it is there; refuse a folder made with other settings.
+
+    :param folder: the run's folder
+    :param record: :func:`~sb3_saeir.run.record.spec_record` of the run
+    :raises ValueError: naming what differs
+    """
+    differences = stored_spec_differences(folder, record)
+    if differences:
+        raise ValueError(f"{folder} holds a run made with other settings: {'; '.join(differences)}.")
+    if not (folder / SPEC_FILE).is_file():
+        write_spec_file(folder, record)
+
+
+def stored_record(folder: Path, algo: str, task: str, legacy_record: LegacyRecord | None = None) -> dict[str, Any]:
+    """The settings record of the run in ``folder``: its ``spec.json``, or for a run of an older version its
+    ``<task>/args.yml`` and ``<task>/config.yml`` made into one by ``legacy_record`` (``None``: such a run is refused).
+
+    :param folder: the run's folder
+    :param algo: the method of the command
+    :param task: the task of the command (``<task>/`` holds the older files)
+    :param legacy_record: the record of an older run from its ``args.yml`` and ``config.yml``
+    :raises ~sb3_saeir.config.ConfigError: when the folder holds no run of this command, or its record is damaged
+    """
+    try:
+        record = read_spec_file(folder)
+    except ConfigError as error:
+        raise ConfigError(f"--resume: {error}") from None
+    if record is not None:
+        if (record.get("algo"), record.get("task")) != (algo, task):
+            raise ConfigError(
+                f"--resume: {folder} holds a run of {record.get('algo')} on {record.get('task')}: it is not a run of this "
+                "command."
+            )
+        return record
+    args_path = folder / task / ARGS_FILE
+    if legacy_record is None:
+        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE}: it is not a run of this command.")
+    if not args_path.is_file():
+        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE} nor {task}/{ARGS_FILE}: it is not a run of this command.")
+    stored_args = read_run_file(args_path)
+    return legacy_record(stored_args, read_run_file(folder / task / CONFIG_FILE))
+
+
+# ---------------------------------------------------------------------------------------------------- writable
+# The files of a run folder that a run goes on writing in place (appended to, or opened for writing); the others are
+# replaced atomically, which needs the folder itself writable.
+WRITTEN_IN_PLACE = (RESUME_LOG, PROGRESS_FILE, f"{MONITOR_PREFIX}.monitor.csv")
+
+
+def unwritable_run_folder(folder: Path) -> str:
+    """What of a run folder a run that goes on in it could not write, or ``""``: the folder itself (a probe file,
+    :func:`~sb3_saeir.common.utils.unwritable_folder`), or one of :data:`WRITTEN_IN_PLACE`.
+
+    :param folder: the run's folder (it exists)
+    :return: one clause naming what cannot be written, or ``""``
+    """
+    problem = unwritable_folder(folder)
+    if problem:
+        return problem
+    for path in (folder / name for name in WRITTEN_IN_PLACE):
+        if path.exists() and not os.access(path, os.W_OK):
+            return f"{path} is not writable"
+    for path in (folder / name for name in REPLACED_FILES):
+        if path.is_dir():  # the atomic writer cannot move a file onto it: the run failed at its first evaluation
+            return f"{path} is a folder, where the run writes a file"
+    return ""
+
+
+# The files a run replaces as a whole (written beside, then moved onto the name).
+REPLACED_FILES = (SPEC_FILE, DONE_FILE, SEGMENTS_FILE, EVALUATIONS_FILE, "evaluations.npz", BEST_MODEL_FILE)
+
+
+def check_run_folder_writable(folder: Path, refused: str = "--resume", copy: str = "--resume the copy") -> None:
+    """Refuse to go on with the run in ``folder`` when it cannot be written (:func:`unwritable_run_folder`), before
+    anything is printed or written (a run printed ``Resuming ...``, then failed on ``resume.log``).
+
+    :param folder: the run's folder, locked
+    :param refused: what is refused, the start of the message (``"--resume"``, a benchmark run's name)
+    :param copy: how the command continues a copy of the run, for the fix
+    :raises ~sb3_saeir.config.ConfigError: one line naming the folder, what cannot be written and the fix
+    """
+    problem = unwritable_run_folder(folder)
+    if problem:
+        raise ConfigError(
+            f"{refused}: the run in {folder} cannot go on there ({problem}); make the folder and its files writable "
+            f"(e.g. chmod -R u+w {folder}), or copy the run to a folder you can write and {copy}."
+        )

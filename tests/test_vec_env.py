@@ -187,6 +187,30 @@ def test_render_game_zero():
     env.close()
 
 
+@pytest.mark.parametrize(
+    "options, shown",
+    [
+        (dict(), "NavigationVecEnv(n_games=2, n_agents=3, num_envs=6, world='mpe', reward='occupancy')"),
+        (dict(backend="supersuit"), "MultiAgentVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=0)"),
+        (dict(num_cpus=2), "MultiAgentWorkerVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=2)"),
+    ],
+    ids=["native", "supersuit", "workers"],
+)
+def test_every_backend_renders_shows_and_closes_alike(options, shown):
+    """What the base gives every backend: ``get_images`` (game 0's frame, ``None`` for the other slots), ``render``,
+    ``repr`` and ``close`` (after which reset and step are refused)."""
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, render_mode="rgb_array", **options)
+    env.reset()
+    images = env.get_images()
+    assert len(images) == 6 and images[0].shape == (400, 400, 3) and images[1:] == [None] * 5
+    np.testing.assert_array_equal(env.render(), images[0])
+    assert repr(env) == shown
+    env.close()
+    assert env.closed
+    with pytest.raises(RuntimeError, match="closed"):
+        env.reset()
+
+
 def test_callable_task():
     env = make_multiagent_vec_env(lambda: SparseCooperativeNavigation(N=2), n_games=2, seed=0)
     assert env.num_envs == 4

@@ -13,7 +13,6 @@ game's end). The task is described in ``docs/tasks.md``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -220,9 +219,15 @@ class NavigationVecEnv(GroupedVecEnv):
     def _game_objects(self) -> list[NavigationGame]:
         return self.games
 
-    def _render_game_zero(self) -> np.ndarray | None:
-        """The frame of game 0, drawn by the engine (``render`` has checked the render mode)."""
+    def _render_game_zero(self) -> np.ndarray:
+        """The frame of game 0, drawn by the engine."""
         return self.core.render(0)
+
+    def _close_games(self) -> None:
+        """Nothing to close: the games are arrays of this process."""
+
+    def _repr_settings(self) -> dict[str, Any]:
+        return {"world": self.core.world, "reward": self.core.reward}
 
     # ------------------------------------------------------------------ resume state
     def get_resume_state(self) -> dict[str, Any]:
@@ -250,19 +255,6 @@ class NavigationVecEnv(GroupedVecEnv):
         self._actions = None
 
     # ------------------------------------------------------------------ SB3 VecEnv API
-    def close(self) -> None:
-        self.closed = True
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """Picture of game 0; ``None`` for the other slots."""
-        return [self.core.render(0)] + [None] * (self.num_envs - 1)
-
     def get_state(self) -> np.ndarray:
         """Global state of every game, ``(n_games, N * obs_dim)``."""
         return self.core.observations().reshape(self.n_games, -1)  # (G, N, obs_dim) -> (G, N * obs_dim)
-
-    def __repr__(self) -> str:
-        return (
-            f"NavigationVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
-            f"world={self.core.world!r}, reward={self.core.reward!r})"
-        )

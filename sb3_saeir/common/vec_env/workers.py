@@ -562,23 +562,10 @@ class MultiAgentWorkerVecEnv(GroupedVecEnv):
         if not self.pool.closed:  # a failed worker closes the pool: nothing left to wait for
             self.pool.step_wait(groups)
 
-    # ------------------------------------------------------------------ SB3 VecEnv API
-    def close(self) -> None:
-        self.closed = True
+    def _render_game_zero(self) -> Any:
+        return self.pool.render_first_game()  # game 0 is in worker 0
+
+    def _close_games(self) -> None:
         self.pool.close()
         if hasattr(self._probe_env, "close"):
             self._probe_env.close()
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """Frame of game 0 (rendered in worker 0); ``None`` for the other slots."""
-        return [self.pool.render_first_game()] + [None] * (self.num_envs - 1)
-
-    def _render_game_zero(self) -> np.ndarray | None:
-        frame = self.pool.render_first_game()
-        return frame if self.render_mode == "rgb_array" else None
-
-    def __repr__(self) -> str:
-        return (
-            f"MultiAgentWorkerVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
-            f"num_cpus={self.num_cpus})"
-        )

@@ -1,4 +1,4 @@
-"""MultiAgentVecEnv: slot layout, lockstep resets, seeding, episode statistics, SB3 VecEnv API, bad input."""
+"""MultiAgentVecEnv's backends: slot layout, lockstep resets, seeding, episode statistics, SB3 VecEnv API, bad input."""
 
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.common.vec_env import AgentDeathError, GroupedVecEnv
+from sb3_saeir.common.vec_env import AgentDeathError, MultiAgentVecEnv
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from tests.toy_envs import DyingAgentsEnv, FreshSpacesMeetEnv, MixedSpacesEnv
 
@@ -27,7 +27,7 @@ def env(request):
 
 
 def test_layout_attributes(env):
-    assert isinstance(env, GroupedVecEnv)
+    assert isinstance(env, MultiAgentVecEnv)
     assert (env.n_agents, env.n_games, env.num_envs) == (3, 3, 9)
     assert env.possible_agents == ["agent_0", "agent_1", "agent_2"]
     assert env.observation_space.shape == (18,)
@@ -191,8 +191,8 @@ def test_render_game_zero():
     "options, shown",
     [
         (dict(), "NavigationVecEnv(n_games=2, n_agents=3, num_envs=6, world='mpe', reward='occupancy')"),
-        (dict(backend="supersuit"), "MultiAgentVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=0)"),
-        (dict(num_cpus=2), "MultiAgentWorkerVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=2)"),
+        (dict(backend="supersuit"), "MultiAgentDummyVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=0)"),
+        (dict(num_cpus=2), "MultiAgentSubprocVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=2)"),
     ],
     ids=["native", "supersuit", "workers"],
 )

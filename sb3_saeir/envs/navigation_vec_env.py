@@ -1,8 +1,8 @@
 """Native multi-agent vec env of sparse Cooperative Navigation: ``n_games`` games stepped at once by the batched core.
 
-It offers what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` offers over SuperSuit (slot ``game * N + agent``,
-``n_agents`` / ``n_games`` / ``possible_agents``, per-game seeds ``seed + g``, lockstep resets, bool dones,
-``terminal_observation``, one ``episode`` dict per game with the task metrics, ``get_state``, per-game
+It offers what :class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv` offers over SuperSuit (slot
+``game * N + agent``, ``n_agents`` / ``n_games`` / ``possible_agents``, per-game seeds ``seed + g``, lockstep resets,
+bool dones, ``terminal_observation``, one ``episode`` dict per game with the task metrics, ``get_state``, per-game
 ``get_attr`` / ``set_attr`` / ``env_method``, ``render()`` of game 0) and gives the same streams as
 :class:`~sb3_saeir.envs.navigation.SparseCooperativeNavigation` through SuperSuit for the same seed (observations,
 rewards, dones, episode records). Physics, rewards and observations have no Python loop over games or agents; Python
@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 from sb3_saeir.common.utils import check_bool
-from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, GroupedVecEnv, RawStep
+from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv, RawStep
 from sb3_saeir.common.vec_env import check_finite as check_finite_values
 from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
@@ -107,9 +107,9 @@ class NavigationGame:
         return self._vec_env.core.render(self.game)
 
 
-class NavigationVecEnv(GroupedVecEnv):
+class NavigationVecEnv(MultiAgentVecEnv):
     """SB3 ``VecEnv`` of ``n_games`` sparse Cooperative Navigation games, one slot per agent, stepped in NumPy (a
-    :class:`~sb3_saeir.common.vec_env.GroupedVecEnv`, as :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`).
+    :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`, as :class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv`).
 
     Build it with :func:`~sb3_saeir.make_multiagent_vec_env` (the default backend of the navigation tasks) or
     directly. All games run in this process (there are no worker processes: ``num_cpus`` is 0; one sampling group).
@@ -173,7 +173,7 @@ class NavigationVecEnv(GroupedVecEnv):
         self._actions: np.ndarray | None = None
         self.core.reset_games()
 
-    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    # ------------------------------------------------------------------ the games (MultiAgentVecEnv)
     def _reset_games(self, seed: int | None, options: dict | None) -> tuple[np.ndarray, list[dict[str, Any]]]:
         """Reset every game (``options`` are ignored: the task has none)."""
         if seed is not None:

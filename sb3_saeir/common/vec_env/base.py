@@ -1,6 +1,6 @@
 """The base of the multi-agent vec envs: ``n_games`` games of ``n_agents`` agents, one SB3 ``VecEnv`` slot per agent.
 
-:class:`GroupedVecEnv` holds what every backend shares (slot layout ``slot = game * n_agents + agent``, per-game
+:class:`MultiAgentVecEnv` holds what every backend shares (slot layout ``slot = game * n_agents + agent``, per-game
 seeds, lockstep resets, NaN/inf checks, one episode record per game, per-game access, grouped stepping); a backend
 only steps its games. The backends and their choice: ``docs/guide/custom_env.md``.
 """
@@ -34,7 +34,7 @@ CLOSED_MESSAGE = "The games are closed (by close()): create a new env to go on."
 RawStep = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]
 
 
-class GroupedVecEnv(VecEnv):
+class MultiAgentVecEnv(VecEnv):
     """What the algorithms train on: an SB3 ``VecEnv`` of ``n_games`` games of ``n_agents`` agents, one slot per
     agent (``slot = game * n_agents + agent``), whose games step all at once or group by group.
 
@@ -45,8 +45,8 @@ class GroupedVecEnv(VecEnv):
     first slot, per-game ``get_attr`` / ``set_attr`` / ``env_method``, rendering of game 0, and the grouped stepping
     of double-buffered sampling (:attr:`sampling_groups`, :meth:`step_group_async`, :meth:`step_any_group_wait`,
     :attr:`n_staged_steps`, :meth:`drain_groups`; :mod:`sb3_saeir.common.sampling`). Three envs implement it:
-    :class:`~sb3_saeir.common.vec_env.pettingzoo.MultiAgentVecEnv` (PettingZoo games in this process, through
-    SuperSuit), :class:`~sb3_saeir.common.vec_env.workers.MultiAgentWorkerVecEnv` (PettingZoo games in worker
+    :class:`~sb3_saeir.common.vec_env.pettingzoo.MultiAgentDummyVecEnv` (PettingZoo games in this process, through
+    SuperSuit), :class:`~sb3_saeir.common.vec_env.workers.MultiAgentSubprocVecEnv` (PettingZoo games in worker
     processes) and :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` (the navigation tasks' batched NumPy
     engine).
 
@@ -532,7 +532,7 @@ class GroupedVecEnv(VecEnv):
 
 def is_multiagent_vec_env(env: Any) -> bool:
     """True if ``env`` (possibly inside SB3 ``VecEnvWrapper`` objects) exposes ``n_agents`` and ``n_games`` (as every
-    :class:`GroupedVecEnv` does; wrappers forward the attributes)."""
+    :class:`MultiAgentVecEnv` does; wrappers forward the attributes)."""
     return getattr(env, "n_agents", None) is not None and getattr(env, "n_games", None) is not None
 
 

@@ -1,4 +1,4 @@
-"""PettingZoo games in this process, stepped through SuperSuit: :class:`MultiAgentVecEnv`.
+"""PettingZoo games in this process, stepped through SuperSuit: :class:`MultiAgentDummyVecEnv`.
 
 SuperSuit vectorizes one game with one slot per agent (``pettingzoo_env_to_vec_env_v1``) and concatenates the copies
 (``concat_vec_envs_v1``); this env is the SB3 ``VecEnv`` on top (SuperSuit's own SB3 wrapper is broken with SB3 2.9,
@@ -11,13 +11,14 @@ from typing import Any
 
 import numpy as np
 
-from sb3_saeir.common.vec_env.base import GroupedVecEnv, RawStep
+from sb3_saeir.common.vec_env.base import MultiAgentVecEnv, RawStep
 from sb3_saeir.common.vec_env.game_checks import ParallelEnvFactory, checked_game, probe_game
 
 
-class MultiAgentVecEnv(GroupedVecEnv):
+class MultiAgentDummyVecEnv(MultiAgentVecEnv):
     """SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game stepped in this process, one slot per agent
-    (a :class:`~sb3_saeir.common.vec_env.base.GroupedVecEnv`: one sampling group of all slots).
+    (a :class:`~sb3_saeir.common.vec_env.base.MultiAgentVecEnv`: one sampling group of all slots), as SB3's
+    ``DummyVecEnv`` steps its envs in this process.
 
     Use :func:`~sb3_saeir.common.vec_env.factory.make_multiagent_vec_env` to build one (``num_cpus`` 0 or 1).
 
@@ -60,7 +61,7 @@ class MultiAgentVecEnv(GroupedVecEnv):
             game_name=type(probe_env).__name__,
         )
 
-    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    # ------------------------------------------------------------------ the games (MultiAgentVecEnv)
     def _game_objects(self) -> list[Any]:
         return [vec.par_env.env for vec in self.venv.vec_envs]  # MarkovVectorEnv -> CheckedParallelEnv -> game
 

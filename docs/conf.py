@@ -55,7 +55,7 @@ html_static_path: list[str] = []
 
 def _resolve_reexport(app, env, node, contnode):
     """Resolve a reference to a re-exported name (``sb3_saeir.MultiAgentVecEnv``, ``sb3_saeir.mappo.MlpPolicy``) to the
-    place where the object is documented (``sb3_saeir.common.vec_env.MultiAgentVecEnv``)."""
+    place where the object is documented (``sb3_saeir.common.vec_env.base.MultiAgentVecEnv``)."""
     import importlib
 
     target = node.get("reftarget", "")

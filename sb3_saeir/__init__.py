@@ -5,7 +5,7 @@ from sb3_saeir.common.stop_signals import exit_on_ctrl_c_while_starting
 exit_on_ctrl_c_while_starting()  # python -m sb3_saeir.train (zoo, benchmark): Ctrl-C while importing exits in one line
 
 from sb3_saeir.common.utils import PACKAGE_VERSION  # noqa: E402
-from sb3_saeir.common.vec_env import GroupedVecEnv, MultiAgentVecEnv, make_multiagent_vec_env  # noqa: E402
+from sb3_saeir.common.vec_env import MultiAgentDummyVecEnv, MultiAgentVecEnv, make_multiagent_vec_env  # noqa: E402
 
 # Importing sb3_saeir.envs registers the package's tasks into sb3_saeir.common.registry. Importing any sb3_saeir module
 # runs this file first, so they are registered before any code can look a task up.
@@ -18,9 +18,9 @@ __version__ = PACKAGE_VERSION
 __all__ = [
     "MAPPO",
     "SAEIR_PPO",
-    "GroupedVecEnv",
     "MAPPOPolicy",
     "MSHGPolicy",
+    "MultiAgentDummyVecEnv",
     "MultiAgentVecEnv",
     "SNMAPPOPolicy",
     "__version__",

@@ -77,7 +77,7 @@ def evaluate_multiagent_policy(
     get their state back at every step and ``episode_start`` at episode boundaries.
 
     :param model: anything with SB3's ``predict(obs, state, episode_start, deterministic)``
-    :param env: a :class:`~sb3_saeir.common.vec_env.GroupedVecEnv` (possibly wrapped)
+    :param env: a :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` (possibly wrapped)
     :param n_episodes: number of game episodes to evaluate
     :param deterministic: greedy actions
     :param return_episodes: also return the list of per-episode dicts
@@ -163,7 +163,7 @@ class MultiAgentEvalCallback(EventCallback):
     (coverage rate for navigation, success rate for football; team return otherwise). ``evaluations.npz`` holds
     ``timesteps``, ``results`` (team returns), ``ep_lengths`` and one array per metric, each ``(n_evaluations, n_episodes)``.
 
-    :param eval_env: a :class:`~sb3_saeir.common.vec_env.GroupedVecEnv`
+    :param eval_env: a :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`
     :param n_eval_episodes: game episodes per evaluation
     :param eval_freq: evaluate every this many agent-steps (``model.num_timesteps``)
     :param main_metric: episode key to maximise for the best model (``"r"`` = team return)

@@ -13,7 +13,7 @@ from gymnasium.utils import seeding
 from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.common.vec_env import GroupedVecEnv, MultiAgentVecEnv
+from sb3_saeir.common.vec_env import MultiAgentDummyVecEnv, MultiAgentVecEnv
 from sb3_saeir.envs import get_native_vec_env_factory, make_task
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from sb3_saeir.envs.navigation_core import NavigationCore
@@ -320,7 +320,8 @@ def test_native_vec_env_api():
     env = make_multiagent_vec_env(
         "cn-sparse-n3", n_games=2, seed=0, render_mode="rgb_array", mark_truncation=True, max_cycles=4
     )
-    assert isinstance(env, GroupedVecEnv) and isinstance(env, NavigationVecEnv) and not isinstance(env, MultiAgentVecEnv)
+    assert isinstance(env, MultiAgentVecEnv) and isinstance(env, NavigationVecEnv)
+    assert not isinstance(env, MultiAgentDummyVecEnv)
     assert (env.n_agents, env.n_games, env.possible_agents) == (3, 2, ["agent_0", "agent_1", "agent_2"])
     assert env.game_of(4) == 1
     obs = env.reset()
@@ -343,12 +344,12 @@ def test_native_vec_env_api():
 
 
 @pytest.mark.parametrize("backend", ["native", "supersuit"])
-def test_both_backends_are_grouped_vec_envs_stepping_by_group(backend):
-    """The native env and the SuperSuit-backed one implement GroupedVecEnv (the native one without subclassing
-    MultiAgentVecEnv); stepped as their one sampling group, they give the lockstep steps."""
+def test_both_backends_are_multiagent_vec_envs_stepping_by_group(backend):
+    """The native env and the SuperSuit-backed one implement MultiAgentVecEnv (the native one without subclassing
+    MultiAgentDummyVecEnv); stepped as their one sampling group, they give the lockstep steps."""
     envs = [make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, max_cycles=3, backend=backend) for _ in range(2)]
-    assert all(isinstance(env, GroupedVecEnv) for env in envs)
-    assert MultiAgentVecEnv not in type(envs[0]).__mro__[1:]
+    assert all(isinstance(env, MultiAgentVecEnv) for env in envs)
+    assert MultiAgentDummyVecEnv not in type(envs[0]).__mro__[1:]
     lockstep, grouped = envs
     np.testing.assert_array_equal(lockstep.reset(), grouped.reset())
     assert grouped.sampling_groups == [range(6)]
@@ -384,10 +385,10 @@ def test_backend_choice():
     assert isinstance(make_multiagent_vec_env("cn-sparse-n4", n_games=1), NavigationVecEnv)
     assert isinstance(make_multiagent_vec_env(SparseCooperativeNavigation, n_games=1, N=2), NavigationVecEnv)
     supersuit = make_multiagent_vec_env("cn-sparse-n3", n_games=1, backend="supersuit", world="mpe2")
-    assert type(supersuit) is MultiAgentVecEnv
+    assert type(supersuit) is MultiAgentDummyVecEnv
     assert supersuit.get_attr("world") == ["mpe2"] * 3
     # a callable without a native vec env, and worker processes, go through SuperSuit
-    assert type(make_multiagent_vec_env(lambda: SparseCooperativeNavigation(N=2), n_games=1)) is MultiAgentVecEnv
+    assert type(make_multiagent_vec_env(lambda: SparseCooperativeNavigation(N=2), n_games=1)) is MultiAgentDummyVecEnv
     assert get_native_vec_env_factory("grf-3v1-keeper") is None
     # the backend may travel with the task kwargs (configs' env_kwargs, the rl-zoo3 bridge): the game ignores it
     assert make_task("cn-sparse-n3", backend="supersuit", world="mpe2").world == "mpe2"

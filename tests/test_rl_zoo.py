@@ -14,7 +14,7 @@ import yaml
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.monitor import load_results
 
-from sb3_saeir import GroupedVecEnv, make_multiagent_vec_env
+from sb3_saeir import MultiAgentVecEnv, make_multiagent_vec_env
 from sb3_saeir.config import ALGOS
 from sb3_saeir.zoo import GameMonitor, games_to_agents, register_algorithms
 from sb3_saeir.zoo.launcher import prepare_enjoy_args, prepare_train_args
@@ -137,7 +137,7 @@ def zoo_game_venv(n_games, seed, monitor_dir=None):
 
 def test_games_to_agents_layout_seeding_and_monitor(tmp_path):
     env = games_to_agents(zoo_game_venv(2, seed=7, monitor_dir=str(tmp_path)))
-    assert isinstance(env, GameMonitor) and isinstance(env.venv, GroupedVecEnv)
+    assert isinstance(env, GameMonitor) and isinstance(env.venv, MultiAgentVecEnv)
     assert env.n_games == 2 and env.n_agents == 3 and env.num_envs == 6  # slot = game * n_agents + agent
     assert not list(tmp_path.glob("[0-9]*.monitor.csv"))  # rl-zoo3's never-stepped game monitors are removed
 

@@ -22,9 +22,9 @@ def test_which_envs_resume_exactly(env, supersuit):
     assert resumable_env(env) is env and unresumable_part(env) == "NavigationVecEnv"
     monitor = MultiAgentVecMonitor(env)
     assert resumable_env(monitor) is monitor and unresumable_part(monitor) == "MultiAgentVecMonitor"
-    assert resumable_env(supersuit) is None and unresumable_part(supersuit) == "MultiAgentVecEnv"
+    assert resumable_env(supersuit) is None and unresumable_part(supersuit) == "MultiAgentDummyVecEnv"
     assert resumable_env(MultiAgentVecMonitor(supersuit)) is None
-    assert unresumable_part(MultiAgentVecMonitor(supersuit)) == "MultiAgentVecEnv"  # the part that cannot, named
+    assert unresumable_part(MultiAgentVecMonitor(supersuit)) == "MultiAgentDummyVecEnv"  # the part that cannot, named
 
 
 def play(env, steps, rng):

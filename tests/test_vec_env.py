@@ -1,4 +1,4 @@
-"""MultiAgentVecEnv: slot layout, lockstep resets, seeding, episode statistics, SB3 VecEnv API, bad input."""
+"""MultiAgentVecEnv's backends: slot layout, lockstep resets, seeding, episode statistics, SB3 VecEnv API, bad input."""
 
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_saeir import make_multiagent_vec_env
-from sb3_saeir.common.vec_env import AgentDeathError, GroupedVecEnv
+from sb3_saeir.common.vec_env import AgentDeathError, MultiAgentVecEnv
 from sb3_saeir.envs.navigation import SparseCooperativeNavigation
 from tests.toy_envs import DyingAgentsEnv, FreshSpacesMeetEnv, MixedSpacesEnv
 
@@ -27,7 +27,7 @@ def env(request):
 
 
 def test_layout_attributes(env):
-    assert isinstance(env, GroupedVecEnv)
+    assert isinstance(env, MultiAgentVecEnv)
     assert (env.n_agents, env.n_games, env.num_envs) == (3, 3, 9)
     assert env.possible_agents == ["agent_0", "agent_1", "agent_2"]
     assert env.observation_space.shape == (18,)
@@ -185,6 +185,30 @@ def test_render_game_zero():
     frame = env.render()
     assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
     env.close()
+
+
+@pytest.mark.parametrize(
+    "options, shown",
+    [
+        (dict(), "NavigationVecEnv(n_games=2, n_agents=3, num_envs=6, world='mpe', reward='occupancy')"),
+        (dict(backend="supersuit"), "MultiAgentDummyVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=0)"),
+        (dict(num_cpus=2), "MultiAgentSubprocVecEnv(n_games=2, n_agents=3, num_envs=6, num_cpus=2)"),
+    ],
+    ids=["native", "supersuit", "workers"],
+)
+def test_every_backend_renders_shows_and_closes_alike(options, shown):
+    """What the base gives every backend: ``get_images`` (game 0's frame, ``None`` for the other slots), ``render``,
+    ``repr`` and ``close`` (after which reset and step are refused)."""
+    env = make_multiagent_vec_env("cn-sparse-n3", n_games=2, seed=0, render_mode="rgb_array", **options)
+    env.reset()
+    images = env.get_images()
+    assert len(images) == 6 and images[0].shape == (400, 400, 3) and images[1:] == [None] * 5
+    np.testing.assert_array_equal(env.render(), images[0])
+    assert repr(env) == shown
+    env.close()
+    assert env.closed
+    with pytest.raises(RuntimeError, match="closed"):
+        env.reset()
 
 
 def test_callable_task():

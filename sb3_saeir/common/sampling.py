@@ -4,7 +4,7 @@ games while the other groups step, Sample Factory's double-buffered sampling), b
 and the per-group random streams. The maths is the synchronous loop's; the random draws come group by group from
 per-group generators, so a seed gives the same run whatever order the groups come back in
 (``docs/guide/performance.md``, "Football across cores"). ``MAPPO.collect_rollouts`` makes one collector per rollout;
-the env is stepped only through :class:`~sb3_saeir.common.vec_env.GroupedVecEnv`'s grouped stepping.
+the env is stepped only through :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`'s grouped stepping.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.type_aliases import MultiAgentStates
-from sb3_saeir.common.vec_env import GroupedVecEnv
+from sb3_saeir.common.vec_env import MultiAgentVecEnv
 
 
 def base_multiagent_env(env: VecEnv) -> tuple[Any, list[VecEnvWrapper]]:
@@ -41,7 +41,7 @@ def games_in_workers(env: VecEnv | None) -> bool:
     if env is None:
         return False
     base, _ = base_multiagent_env(env)
-    return isinstance(base, GroupedVecEnv) and len(base.sampling_groups) >= 2
+    return isinstance(base, MultiAgentVecEnv) and len(base.sampling_groups) >= 2
 
 
 def double_buffering_obstacle(env: VecEnv | None) -> str | None:
@@ -58,7 +58,7 @@ def double_buffering_obstacle(env: VecEnv | None) -> str | None:
     if env is None:
         return "there is no env"
     base, wrappers = base_multiagent_env(env)
-    if not isinstance(base, GroupedVecEnv):
+    if not isinstance(base, MultiAgentVecEnv):
         return f"{type(base).__name__} has no groups of games that step on their own (make_multiagent_vec_env does)"
     if len(base.sampling_groups) < 2:
         return "its games run in one process (make_multiagent_vec_env(..., num_cpus=2) or more runs them in workers)"
@@ -286,7 +286,7 @@ class RolloutCollector:
         callbacks called) once every group has made it."""
         owner, env, n_rollout_steps = self.owner, self.env, self.n_rollout_steps
         base, _ = base_multiagent_env(env)
-        assert isinstance(base, GroupedVecEnv)
+        assert isinstance(base, MultiAgentVecEnv)
         groups = base.sampling_groups
         streams = GroupRandomStreams(len(groups), self.device)
         in_buffer: list[collections.deque[PolicyStep]] = [collections.deque() for _ in groups]  # sent, not yet stored

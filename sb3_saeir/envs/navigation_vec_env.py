@@ -1,8 +1,8 @@
 """Native multi-agent vec env of sparse Cooperative Navigation: ``n_games`` games stepped at once by the batched core.
 
-It offers what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` offers over SuperSuit (slot ``game * N + agent``,
-``n_agents`` / ``n_games`` / ``possible_agents``, per-game seeds ``seed + g``, lockstep resets, bool dones,
-``terminal_observation``, one ``episode`` dict per game with the task metrics, ``get_state``, per-game
+It offers what :class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv` offers over SuperSuit (slot
+``game * N + agent``, ``n_agents`` / ``n_games`` / ``possible_agents``, per-game seeds ``seed + g``, lockstep resets,
+bool dones, ``terminal_observation``, one ``episode`` dict per game with the task metrics, ``get_state``, per-game
 ``get_attr`` / ``set_attr`` / ``env_method``, ``render()`` of game 0) and gives the same streams as
 :class:`~sb3_saeir.envs.navigation.SparseCooperativeNavigation` through SuperSuit for the same seed (observations,
 rewards, dones, episode records). Physics, rewards and observations have no Python loop over games or agents; Python
@@ -13,14 +13,13 @@ game's end). The task is described in ``docs/tasks.md``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from sb3_saeir.common.utils import check_bool
-from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, GroupedVecEnv, RawStep
+from sb3_saeir.common.vec_env import EPISODE_METRICS_KEY, MultiAgentVecEnv, RawStep
 from sb3_saeir.common.vec_env import check_finite as check_finite_values
 from sb3_saeir.envs.navigation_core import (
     AGENT_SIZE,
@@ -108,9 +107,9 @@ class NavigationGame:
         return self._vec_env.core.render(self.game)
 
 
-class NavigationVecEnv(GroupedVecEnv):
+class NavigationVecEnv(MultiAgentVecEnv):
     """SB3 ``VecEnv`` of ``n_games`` sparse Cooperative Navigation games, one slot per agent, stepped in NumPy (a
-    :class:`~sb3_saeir.common.vec_env.GroupedVecEnv`, as :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`).
+    :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`, as :class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv`).
 
     Build it with :func:`~sb3_saeir.make_multiagent_vec_env` (the default backend of the navigation tasks) or
     directly. All games run in this process (there are no worker processes: ``num_cpus`` is 0; one sampling group).
@@ -174,7 +173,7 @@ class NavigationVecEnv(GroupedVecEnv):
         self._actions: np.ndarray | None = None
         self.core.reset_games()
 
-    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    # ------------------------------------------------------------------ the games (MultiAgentVecEnv)
     def _reset_games(self, seed: int | None, options: dict | None) -> tuple[np.ndarray, list[dict[str, Any]]]:
         """Reset every game (``options`` are ignored: the task has none)."""
         if seed is not None:
@@ -220,9 +219,15 @@ class NavigationVecEnv(GroupedVecEnv):
     def _game_objects(self) -> list[NavigationGame]:
         return self.games
 
-    def _render_game_zero(self) -> np.ndarray | None:
-        """The frame of game 0, drawn by the engine (``render`` has checked the render mode)."""
+    def _render_game_zero(self) -> np.ndarray:
+        """The frame of game 0, drawn by the engine."""
         return self.core.render(0)
+
+    def _close_games(self) -> None:
+        """Nothing to close: the games are arrays of this process."""
+
+    def _repr_settings(self) -> dict[str, Any]:
+        return {"world": self.core.world, "reward": self.core.reward}
 
     # ------------------------------------------------------------------ resume state
     def get_resume_state(self) -> dict[str, Any]:
@@ -250,19 +255,6 @@ class NavigationVecEnv(GroupedVecEnv):
         self._actions = None
 
     # ------------------------------------------------------------------ SB3 VecEnv API
-    def close(self) -> None:
-        self.closed = True
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """Picture of game 0; ``None`` for the other slots."""
-        return [self.core.render(0)] + [None] * (self.num_envs - 1)
-
     def get_state(self) -> np.ndarray:
         """Global state of every game, ``(n_games, N * obs_dim)``."""
         return self.core.observations().reshape(self.n_games, -1)  # (G, N, obs_dim) -> (G, N * obs_dim)
-
-    def __repr__(self) -> str:
-        return (
-            f"NavigationVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
-            f"world={self.core.world!r}, reward={self.core.reward!r})"
-        )

@@ -18,7 +18,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 
 from sb3_saeir.common.vec_env import (
     EPISODE_METRICS_KEY,
-    GroupedVecEnv,
+    MultiAgentVecEnv,
     MultiAgentVecMonitor,
     check_parallel_env,
     make_multiagent_vec_env,
@@ -258,7 +258,7 @@ def games_to_agents(venv: VecEnv, num_cpus: int = 0, mark_truncation: bool = Fal
     venv.close()
     for path in monitor_files:
         _remove_if_empty(path)
-    agents: GroupedVecEnv = make_multiagent_vec_env(
+    agents: MultiAgentVecEnv = make_multiagent_vec_env(
         task, n_games=n_games, seed=seed, num_cpus=num_cpus, mark_truncation=mark_truncation, **task_kwargs
     )
     filename = os.path.join(os.path.dirname(monitor_files[0]), MONITOR_PREFIX) if monitor_files else None

@@ -2,7 +2,7 @@
 
 from sb3_saeir.common.vec_env.base import (
     EPISODE_METRICS_KEY,
-    GroupedVecEnv,
+    MultiAgentVecEnv,
     RawStep,
     is_multiagent_vec_env,
     joint_observation_space,
@@ -21,8 +21,8 @@ from sb3_saeir.common.vec_env.game_checks import (
     check_vec_env_options,
 )
 from sb3_saeir.common.vec_env.monitor import MultiAgentVecMonitor
-from sb3_saeir.common.vec_env.pettingzoo import MultiAgentVecEnv
-from sb3_saeir.common.vec_env.workers import GameWorkerError, GameWorkerPool, MultiAgentWorkerVecEnv
+from sb3_saeir.common.vec_env.pettingzoo import MultiAgentDummyVecEnv
+from sb3_saeir.common.vec_env.workers import GameWorkerError, GameWorkerPool, MultiAgentSubprocVecEnv
 
 __all__ = [
     "EPISODE_METRICS_KEY",
@@ -33,10 +33,10 @@ __all__ = [
     "GameFaultError",
     "GameWorkerError",
     "GameWorkerPool",
-    "GroupedVecEnv",
+    "MultiAgentDummyVecEnv",
+    "MultiAgentSubprocVecEnv",
     "MultiAgentVecEnv",
     "MultiAgentVecMonitor",
-    "MultiAgentWorkerVecEnv",
     "NonFiniteValueError",
     "ParallelEnvFactory",
     "RawStep",

@@ -1,6 +1,6 @@
 """The base of the multi-agent vec envs: ``n_games`` games of ``n_agents`` agents, one SB3 ``VecEnv`` slot per agent.
 
-:class:`GroupedVecEnv` holds what every backend shares (slot layout ``slot = game * n_agents + agent``, per-game
+:class:`MultiAgentVecEnv` holds what every backend shares (slot layout ``slot = game * n_agents + agent``, per-game
 seeds, lockstep resets, NaN/inf checks, one episode record per game, per-game access, grouped stepping); a backend
 only steps its games. The backends and their choice: ``docs/guide/custom_env.md``.
 """
@@ -34,7 +34,7 @@ CLOSED_MESSAGE = "The games are closed (by close()): create a new env to go on."
 RawStep = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]
 
 
-class GroupedVecEnv(VecEnv):
+class MultiAgentVecEnv(VecEnv):
     """What the algorithms train on: an SB3 ``VecEnv`` of ``n_games`` games of ``n_agents`` agents, one slot per
     agent (``slot = game * n_agents + agent``), whose games step all at once or group by group.
 
@@ -45,15 +45,24 @@ class GroupedVecEnv(VecEnv):
     first slot, per-game ``get_attr`` / ``set_attr`` / ``env_method``, rendering of game 0, and the grouped stepping
     of double-buffered sampling (:attr:`sampling_groups`, :meth:`step_group_async`, :meth:`step_any_group_wait`,
     :attr:`n_staged_steps`, :meth:`drain_groups`; :mod:`sb3_saeir.common.sampling`). Three envs implement it:
-    :class:`~sb3_saeir.common.vec_env.pettingzoo.MultiAgentVecEnv` (PettingZoo games in this process, through
-    SuperSuit), :class:`~sb3_saeir.common.vec_env.workers.MultiAgentWorkerVecEnv` (PettingZoo games in worker
+    :class:`~sb3_saeir.common.vec_env.pettingzoo.MultiAgentDummyVecEnv` (PettingZoo games in this process, through
+    SuperSuit), :class:`~sb3_saeir.common.vec_env.workers.MultiAgentSubprocVecEnv` (PettingZoo games in worker
     processes) and :class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv` (the navigation tasks' batched NumPy
     engine).
 
+    With SB3's own callbacks, remember that one ``env.step`` is ``n_games * n_agents`` agent-steps:
+    ``CheckpointCallback(save_freq=...)`` and ``EvalCallback(eval_freq=...)`` count ``env.step`` calls, and
+    ``EvalCallback``'s ``n_eval_episodes`` counts agent slots (each agent's return is an episode). Use
+    :class:`~sb3_saeir.evaluation.MultiAgentEvalCallback` (frequency in agent-steps, episodes per game, the task's
+    metrics) and wrap other callbacks in :class:`~sb3_saeir.common.callbacks.EveryAgentSteps`. SB3's evaluation warns
+    that the env is not wrapped in a ``Monitor``: expected, since episodes are recorded per game by this env itself
+    (a ``VecMonitor`` would count every agent as an episode); do not add one.
+
     A subclass implements the games: :meth:`_reset_games`, :meth:`_step_games_async`, :meth:`_step_games_wait`,
-    :meth:`_abandon_steps`, :meth:`_game_objects`, :meth:`_render_game_zero`, ``get_images`` and ``close`` (which sets
-    :attr:`closed`: a closed env refuses to reset or step); and, when its games run in worker processes,
-    :attr:`sampling_groups` (one group per worker) and :meth:`_first_done_group`.
+    :meth:`_abandon_steps`, :meth:`_game_objects`, :meth:`_render_game_zero` (for ``render`` and ``get_images``) and
+    :meth:`_close_games` (for ``close``, which sets :attr:`closed`: a closed env refuses to reset or step); and, when
+    its games run in worker processes, :attr:`sampling_groups` (one group per worker) and :meth:`_first_done_group`.
+    ``repr`` shows the class name, the layout and the settings of :meth:`_repr_settings`.
     An env that can save its exact state for resumed training also has ``get_resume_state`` / ``set_resume_state``
     (:class:`~sb3_saeir.envs.navigation_vec_env.NavigationVecEnv`; :meth:`_records_state` holds this class's part).
 
@@ -152,8 +161,16 @@ class GroupedVecEnv(VecEnv):
         attributes); raise when the games cannot be reached from this process."""
 
     @abstractmethod
-    def _render_game_zero(self) -> np.ndarray | None:
-        """The frame of game 0 (``render`` has checked the render mode)."""
+    def _render_game_zero(self) -> Any:
+        """What ``render()`` of game 0 returns (its frame in ``rgb_array`` mode), for ``render`` and ``get_images``."""
+
+    @abstractmethod
+    def _close_games(self) -> None:
+        """Close the games and whatever steps them (``close`` has marked the env :attr:`closed`)."""
+
+    def _repr_settings(self) -> dict[str, Any]:
+        """The settings that ``repr`` shows (with ``repr``) after the layout; here: ``num_cpus``."""
+        return {"num_cpus": int(self.num_cpus)}
 
     def _first_done_group(self, groups: list[int]) -> int:
         """Block until one of ``groups`` (each with a step in flight) has made its step; return it (here: the first,
@@ -457,7 +474,23 @@ class GroupedVecEnv(VecEnv):
         if self.render_mode is None:
             warnings.warn("render() called but the task was created without render_mode.", stacklevel=2)
             return None
-        return self._render_game_zero()
+        frame = self._render_game_zero()
+        return frame if self.render_mode == "rgb_array" else None
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """Frame of game 0 (the games render the first one only); ``None`` for the other slots."""
+        return [self._render_game_zero()] + [None] * (self.num_envs - 1)
+
+    def close(self) -> None:
+        """Close the games; the env then refuses to reset or step (:attr:`closed`)."""
+        self.closed = True
+        self._close_games()
+
+    def __repr__(self) -> str:
+        settings = {"n_games": self.n_games, "n_agents": self.n_agents, "num_envs": self.num_envs}
+        settings.update(self._repr_settings())
+        shown = ", ".join(f"{name}={value!r}" for name, value in settings.items())
+        return f"{type(self).__name__}({shown})"
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """Attribute of the game each slot belongs to (``render_mode``, ``metadata``, ``possible_agents``,
@@ -499,7 +532,7 @@ class GroupedVecEnv(VecEnv):
 
 def is_multiagent_vec_env(env: Any) -> bool:
     """True if ``env`` (possibly inside SB3 ``VecEnvWrapper`` objects) exposes ``n_agents`` and ``n_games`` (as every
-    :class:`GroupedVecEnv` does; wrappers forward the attributes)."""
+    :class:`MultiAgentVecEnv` does; wrappers forward the attributes)."""
     return getattr(env, "n_agents", None) is not None and getattr(env, "n_games", None) is not None
 
 

@@ -1,8 +1,8 @@
 """:func:`make_multiagent_vec_env`: the one place that checks the vec env's options and picks its backend.
 
 A task's native vec env (all games in this process), the PettingZoo games in this process through SuperSuit
-(:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`), or in worker processes
-(:class:`~sb3_saeir.common.vec_env.MultiAgentWorkerVecEnv`); the rules: ``docs/guide/custom_env.md``.
+(:class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv`), or in worker processes
+(:class:`~sb3_saeir.common.vec_env.MultiAgentSubprocVecEnv`); the rules: ``docs/guide/custom_env.md``.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from pettingzoo.utils.env import ParallelEnv
 
 from sb3_saeir.common.registry import VEC_ENV_KEYS, get_native_vec_env_factory, get_task_factory, get_task_spec
 from sb3_saeir.common.utils import check_seed, keywords_taken, usable_cores, user_stacklevel
-from sb3_saeir.common.vec_env.base import GroupedVecEnv
+from sb3_saeir.common.vec_env.base import MultiAgentVecEnv
 from sb3_saeir.common.vec_env.game_checks import ParallelEnvFactory, check_vec_env_options
-from sb3_saeir.common.vec_env.pettingzoo import MultiAgentVecEnv
-from sb3_saeir.common.vec_env.workers import MultiAgentWorkerVecEnv, exit_if_importing_main
+from sb3_saeir.common.vec_env.pettingzoo import MultiAgentDummyVecEnv
+from sb3_saeir.common.vec_env.workers import MultiAgentSubprocVecEnv, exit_if_importing_main
 
 # Values of make_multiagent_vec_env's ``backend``.
 VEC_ENV_BACKENDS = (None, "native", "supersuit")
@@ -32,7 +32,7 @@ def make_multiagent_vec_env(
     backend: str | None = None,
     check_finite: bool = True,
     **task_kwargs: Any,
-) -> GroupedVecEnv:
+) -> MultiAgentVecEnv:
     """Create an SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game, one slot per agent.
 
     Mirrors :func:`stable_baselines3.common.env_util.make_vec_env`: all agents share one policy (parameter sharing);
@@ -68,7 +68,7 @@ def make_multiagent_vec_env(
     if backend not in VEC_ENV_BACKENDS:
         raise ValueError(f"backend must be one of {VEC_ENV_BACKENDS[1:]} or None (the task's default), got {backend!r}.")
     native = _native_vec_env_factory(task, backend, num_cpus)
-    vec_env: GroupedVecEnv
+    vec_env: MultiAgentVecEnv
     if native is not None:
         vec_env = native(n_games, mark_truncation=mark_truncation, **task_kwargs)
         vec_env.check_finite = check_finite
@@ -77,11 +77,11 @@ def make_multiagent_vec_env(
         if num_cpus >= 2:
             exit_if_importing_main()  # a worker importing an unguarded script again ends here, before any warning
             warn_more_workers_than_cores(num_cpus, n_games)
-            vec_env = MultiAgentWorkerVecEnv(
+            vec_env = MultiAgentSubprocVecEnv(
                 env_fn, n_games, num_cpus=num_cpus, mark_truncation=mark_truncation, check_finite=check_finite
             )
         else:
-            vec_env = MultiAgentVecEnv(env_fn, n_games, mark_truncation=mark_truncation, check_finite=check_finite)
+            vec_env = MultiAgentDummyVecEnv(env_fn, n_games, mark_truncation=mark_truncation, check_finite=check_finite)
     if seed is not None:
         vec_env.seed(seed)
     return vec_env

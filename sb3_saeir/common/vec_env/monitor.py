@@ -23,7 +23,7 @@ from sb3_saeir.common.utils import check_bool
 
 
 class MultiAgentVecMonitor(VecEnvWrapper):
-    """Per-game episode records of a :class:`~sb3_saeir.common.vec_env.GroupedVecEnv` (any backend), optionally
+    """Per-game episode records of a :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` (any backend), optionally
     written as a monitor CSV.
 
     The multi-agent vec env puts one ``episode`` dict (team return ``r``, game steps ``l``, task metrics) into the info

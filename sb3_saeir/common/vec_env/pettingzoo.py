@@ -1,4 +1,4 @@
-"""PettingZoo games in this process, stepped through SuperSuit: :class:`MultiAgentVecEnv`.
+"""PettingZoo games in this process, stepped through SuperSuit: :class:`MultiAgentDummyVecEnv`.
 
 SuperSuit vectorizes one game with one slot per agent (``pettingzoo_env_to_vec_env_v1``) and concatenates the copies
 (``concat_vec_envs_v1``); this env is the SB3 ``VecEnv`` on top (SuperSuit's own SB3 wrapper is broken with SB3 2.9,
@@ -7,28 +7,20 @@ SuperSuit vectorizes one game with one slot per agent (``pettingzoo_env_to_vec_e
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from sb3_saeir.common.vec_env.base import GroupedVecEnv, RawStep
+from sb3_saeir.common.vec_env.base import MultiAgentVecEnv, RawStep
 from sb3_saeir.common.vec_env.game_checks import ParallelEnvFactory, checked_game, probe_game
 
 
-class MultiAgentVecEnv(GroupedVecEnv):
+class MultiAgentDummyVecEnv(MultiAgentVecEnv):
     """SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game stepped in this process, one slot per agent
-    (a :class:`~sb3_saeir.common.vec_env.base.GroupedVecEnv`: one sampling group of all slots).
+    (a :class:`~sb3_saeir.common.vec_env.base.MultiAgentVecEnv`: one sampling group of all slots), as SB3's
+    ``DummyVecEnv`` steps its envs in this process.
 
     Use :func:`~sb3_saeir.common.vec_env.factory.make_multiagent_vec_env` to build one (``num_cpus`` 0 or 1).
-
-    With SB3's own callbacks, remember that one ``env.step`` is ``n_games * n_agents`` agent-steps:
-    ``CheckpointCallback(save_freq=...)`` and ``EvalCallback(eval_freq=...)`` count ``env.step`` calls, and
-    ``EvalCallback``'s ``n_eval_episodes`` counts agent slots (each agent's return is an episode). Use
-    :class:`~sb3_saeir.evaluation.MultiAgentEvalCallback` (frequency in agent-steps, episodes per game, the task's
-    metrics) and wrap other callbacks in :class:`~sb3_saeir.common.callbacks.EveryAgentSteps`. SB3's evaluation warns
-    that the env is not wrapped in a ``Monitor``: expected, since episodes are recorded per game by this env itself
-    (a ``VecMonitor`` would count every agent as an episode); do not add one.
 
     :param env_fn: callable returning one PettingZoo ``ParallelEnv`` (one game)
     :param n_games: number of game copies G; the vec env has ``G * n_agents`` slots
@@ -69,7 +61,7 @@ class MultiAgentVecEnv(GroupedVecEnv):
             game_name=type(probe_env).__name__,
         )
 
-    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    # ------------------------------------------------------------------ the games (MultiAgentVecEnv)
     def _game_objects(self) -> list[Any]:
         return [vec.par_env.env for vec in self.venv.vec_envs]  # MarkovVectorEnv -> CheckedParallelEnv -> game
 
@@ -87,24 +79,10 @@ class MultiAgentVecEnv(GroupedVecEnv):
     def _abandon_steps(self, groups: list[int]) -> None:
         self.venv.step_wait()
 
-    # ------------------------------------------------------------------ SB3 VecEnv API
-    def close(self) -> None:
-        self.closed = True
+    def _render_game_zero(self) -> Any:
+        return self.venv.render()  # SuperSuit renders the first game only
+
+    def _close_games(self) -> None:
         self.venv.close()
         if hasattr(self._probe_env, "close"):
             self._probe_env.close()
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """Frame of game 0 (SuperSuit renders the first game only); ``None`` for the other slots."""
-        frame = self.venv.render()
-        return [frame] + [None] * (self.num_envs - 1)
-
-    def _render_game_zero(self) -> np.ndarray | None:
-        frame = self.venv.render()
-        return frame if self.render_mode == "rgb_array" else None
-
-    def __repr__(self) -> str:
-        return (
-            f"MultiAgentVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
-            f"num_cpus={self.num_cpus})"
-        )

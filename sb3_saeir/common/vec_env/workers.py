@@ -1,9 +1,9 @@
-"""PettingZoo games in worker processes: :class:`MultiAgentWorkerVecEnv` over a :class:`GameWorkerPool`.
+"""PettingZoo games in worker processes: :class:`MultiAgentSubprocVecEnv` over a :class:`GameWorkerPool`.
 
 Each worker steps a contiguous block of games; observations, actions, rewards and dones sit in shared memory laid out
 as the slots, so a step is one message per worker. Each worker's games form a sampling group that steps on its own
 (double-buffered sampling). Same seeds and actions give the same streams as
-:class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` (tested). Details: ``docs/guide/custom_env.md``.
+:class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv` (tested). Details: ``docs/guide/custom_env.md``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
 
-from sb3_saeir.common.vec_env.base import GroupedVecEnv, RawStep
+from sb3_saeir.common.vec_env.base import MultiAgentVecEnv, RawStep
 from sb3_saeir.common.vec_env.game_checks import CheckedGameFactory, GameFaultError, ParallelEnvFactory, probe_game
 
 # Seconds a worker gets to answer "close" before it is terminated.
@@ -114,9 +114,10 @@ class SharedSlots:
 
 
 class GameBlock:
-    """The games of one worker, stepped as SuperSuit steps them in :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv`:
-    a game whose agents are all done puts each agent's last observation into its info as ``terminal_observation``, is
-    reset without a seed, and its reset infos are merged into the step's infos.
+    """The games of one worker, stepped as SuperSuit steps them in
+    :class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv`: a game whose agents are all done puts each agent's last
+    observation into its info as ``terminal_observation``, is reset without a seed, and its reset infos are merged into
+    the step's infos.
 
     :param games: parallel envs (already wrapped as the vec env wraps them)
     :param first_slot: slot of the block's first agent
@@ -466,14 +467,15 @@ class _GameFactory:
         return [self.env_fn() for _ in range(self.n)]
 
 
-class MultiAgentWorkerVecEnv(GroupedVecEnv):
+class MultiAgentSubprocVecEnv(MultiAgentVecEnv):
     """SB3 ``VecEnv`` over ``n_games`` copies of a PettingZoo parallel game stepped in worker processes, one slot per
-    agent (a :class:`~sb3_saeir.common.vec_env.base.GroupedVecEnv`; one sampling group per worker).
+    agent (a :class:`~sb3_saeir.common.vec_env.base.MultiAgentVecEnv`; one sampling group per worker), as SB3's
+    ``SubprocVecEnv`` steps its envs in subprocesses.
 
     Use :func:`~sb3_saeir.common.vec_env.factory.make_multiagent_vec_env` with ``num_cpus >= 2`` to build one. It
-    gives what :class:`~sb3_saeir.common.vec_env.MultiAgentVecEnv` gives for the same seeds and actions, but per-game
-    access (``get_attr`` / ``set_attr`` / ``env_method`` / ``get_state`` of the games' own attributes) needs the games
-    in this process.
+    gives what :class:`~sb3_saeir.common.vec_env.MultiAgentDummyVecEnv` gives for the same seeds and actions, but
+    per-game access (``get_attr`` / ``set_attr`` / ``env_method`` / ``get_state`` of the games' own attributes) needs
+    the games in this process.
 
     :param env_fn: callable returning one PettingZoo ``ParallelEnv`` (one game), called once here and ``n_games``
         times in the workers (it is pickled with cloudpickle)
@@ -525,7 +527,7 @@ class MultiAgentWorkerVecEnv(GroupedVecEnv):
             game_name=type(probe_env).__name__,
         )
 
-    # ------------------------------------------------------------------ the games (GroupedVecEnv)
+    # ------------------------------------------------------------------ the games (MultiAgentVecEnv)
     def _game_objects(self) -> list[Any]:
         raise RuntimeError(
             "Per-game access (get_attr/set_attr/env_method/get_state on arbitrary attributes) is only available "
@@ -562,23 +564,10 @@ class MultiAgentWorkerVecEnv(GroupedVecEnv):
         if not self.pool.closed:  # a failed worker closes the pool: nothing left to wait for
             self.pool.step_wait(groups)
 
-    # ------------------------------------------------------------------ SB3 VecEnv API
-    def close(self) -> None:
-        self.closed = True
+    def _render_game_zero(self) -> Any:
+        return self.pool.render_first_game()  # game 0 is in worker 0
+
+    def _close_games(self) -> None:
         self.pool.close()
         if hasattr(self._probe_env, "close"):
             self._probe_env.close()
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """Frame of game 0 (rendered in worker 0); ``None`` for the other slots."""
-        return [self.pool.render_first_game()] + [None] * (self.num_envs - 1)
-
-    def _render_game_zero(self) -> np.ndarray | None:
-        frame = self.pool.render_first_game()
-        return frame if self.render_mode == "rgb_array" else None
-
-    def __repr__(self) -> str:
-        return (
-            f"MultiAgentWorkerVecEnv(n_games={self.n_games}, n_agents={self.n_agents}, num_envs={self.num_envs}, "
-            f"num_cpus={self.num_cpus})"
-        )

@@ -11,7 +11,6 @@ from __future__ import annotations
 import contextlib
 import inspect
 import json
-import math
 import os
 import pathlib
 import pickle
@@ -30,7 +29,7 @@ from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
 from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
-from sb3_saeir.common.utils import check_bool, check_writable_folder, unwritable_folder, user_stacklevel
+from sb3_saeir.common.utils import check_bool, check_number, check_writable_folder, unwritable_folder, user_stacklevel
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
 # The largest agent-step count a budget may have: integers up to 2**53 are exact as floats (SB3's progress and the
@@ -66,7 +65,9 @@ _ENV_EXAMPLE = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
 
 # ------------------------------------------------------------------------------------------------ numbers and switches
 def check_ranges(algo_name: str, **values: Any) -> None:
-    """Raise a ``ValueError`` naming the first argument outside its valid range (``None`` and schedules pass).
+    """Check the algorithms' numeric arguments against their ranges (``_RANGES``), in the order given, with
+    :func:`~sb3_saeir.common.utils.check_number`: the first one that is no number, or outside its range, is refused
+    in one line (``None`` and schedules pass).
 
     :param algo_name: class name for the message
     :param values: argument name -> value, for names in ``_RANGES``
@@ -74,13 +75,8 @@ def check_ranges(algo_name: str, **values: Any) -> None:
     for name, value in values.items():
         if value is None or callable(value):
             continue
-        if name in _INTEGER_ARGUMENTS and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
-            raise ValueError(f"{algo_name}: {name} must be an integer, got {value!r}.")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(float(value)):
-            raise ValueError(f"{algo_name}: {name} must be a finite number, got {value!r}.")
         test, rule = _RANGES[name]
-        if not test(float(value)):
-            raise ValueError(f"{algo_name}: {name}={value!r} is out of range; it must be {rule}.")
+        check_number(algo_name, name, value, rule, test, integer=name in _INTEGER_ARGUMENTS, out_of_range=True)
 
 
 def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool = False) -> None:

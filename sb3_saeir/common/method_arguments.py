@@ -1,6 +1,7 @@
 """Checks of the arguments of an algorithm's methods after construction (``learn``, ``set_parameters``): each bad
 argument is one line naming it and what it must be, before SB3 or torch fail on it with their own errors
-(``docs/guide/algorithms.md``). The constructor's checks are in :mod:`sb3_saeir.common.checks`.
+(``docs/guide/algorithms.md``). The constructor's checks are in :mod:`sb3_saeir.common.checks`, those of a saved
+model in :mod:`sb3_saeir.common.saved_model_checks`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from typing import Any
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
-from sb3_saeir.common.checks import ParameterNamesError
+from sb3_saeir.common.saved_model_checks import ParameterNamesError
 from sb3_saeir.common.utils import check_bool
 
 

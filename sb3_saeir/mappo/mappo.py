@@ -25,7 +25,7 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_saeir.common import checks, method_arguments
+from sb3_saeir.common import checks, method_arguments, saved_model_checks
 from sb3_saeir.common.atomic import save_zip
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
@@ -491,10 +491,10 @@ class MAPPO(OnPolicyAlgorithm):
         """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``; ``compile``
         is a keyword argument, not a custom object), the env's ``n_agents`` checked against the model's (as
         :meth:`set_env`, before SB3 compares the spaces), and one line for a path where there is no file or a folder
-        (:func:`~sb3_saeir.common.checks.check_load_arguments`), a model of another library
-        (:func:`~sb3_saeir.common.checks.check_saved_model`), a file that is not a complete model zip, or
+        (:func:`~sb3_saeir.common.saved_model_checks.check_load_arguments`), a model of another library
+        (:func:`~sb3_saeir.common.saved_model_checks.check_saved_model`), a file that is not a complete model zip, or
         ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit (recurrent against
-        feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`). A model saved by another
+        feed-forward, other sizes: :func:`~sb3_saeir.common.saved_model_checks.model_zip_errors`). A model saved by another
         sb3-saeir version (``save`` records it) loads with a one-line warning naming both versions."""
         name = cls.__name__
         method_arguments.check_custom_objects(f"{name}.load", custom_objects)
@@ -505,11 +505,11 @@ class MAPPO(OnPolicyAlgorithm):
         checks.check_device(name, device)
         if env is not None:
             checks.check_env_argument(name, env)
-        checks.check_load_arguments(name, path, custom_objects)
-        data = checks.saved_data(path)
+        saved_model_checks.check_load_arguments(name, path, custom_objects)
+        data = saved_model_checks.saved_data(path)
         if data is not None:
-            checks.check_saved_model(name, path, data, env)
-        with checks.model_zip_errors(name, path, custom_objects):
+            saved_model_checks.check_saved_model(name, path, data, env)
+        with saved_model_checks.model_zip_errors(name, path, custom_objects):
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         model._apply_overrides(overrides)
         saved_version = (data or {}).get("sb3_saeir_version")
@@ -549,9 +549,9 @@ class MAPPO(OnPolicyAlgorithm):
     ) -> None:
         """SB3's ``set_parameters``; with ``exact_match``, the parameters of a recurrent network given to a
         feed-forward model (or the reverse) are refused in one line before any is set
-        (:func:`~sb3_saeir.common.checks.check_network_kind`; torch's ``load_state_dict`` error listed every GRU key),
-        and so are parameters with entries missing or unknown to the model
-        (:func:`~sb3_saeir.common.checks.check_parameter_names`; torch set the others first).
+        (:func:`~sb3_saeir.common.saved_model_checks.check_network_kind`; torch's ``load_state_dict`` error listed every
+        GRU key), and so are parameters with entries missing or unknown to the model
+        (:func:`~sb3_saeir.common.saved_model_checks.check_parameter_names`; torch set the others first).
 
         :param load_path_or_dict: a model zip (path or file object), or a dict of state dicts as ``get_parameters``
             returns it
@@ -569,8 +569,8 @@ class MAPPO(OnPolicyAlgorithm):
         saved_policy = params.get("policy")
         if exact_match and getattr(self, "policy", None) is not None:
             if isinstance(saved_policy, dict):
-                checks.check_network_kind(owner, saved_policy, self.policy)
-            checks.check_parameter_names(owner, params, self)
+                saved_model_checks.check_network_kind(owner, saved_policy, self.policy)
+            saved_model_checks.check_parameter_names(owner, params, self)
         method_arguments.check_parameter_shapes(owner, params, self)
         super().set_parameters(params, exact_match=exact_match, device=device)
 

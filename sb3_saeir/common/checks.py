@@ -2,10 +2,10 @@
 argument, the value and the fix, before anything is built or written (``docs/guide/algorithms.md``).
 
 One implementation per check, used by every caller: :class:`~sb3_saeir.MAPPO` / :class:`~sb3_saeir.SAEIR_PPO`
-(constructor, ``load``, ``save``) and ``python -m sb3_saeir.train`` (the device, through
-:func:`sb3_saeir.command_line.check_arguments`). The checks of a saved model (``load``'s file, ``set_parameters``'
-parameters) are in :mod:`sb3_saeir.common.saved_model_checks`, those of ``learn`` and ``set_parameters``' other
-arguments in :mod:`sb3_saeir.common.method_arguments`.
+(constructor: :func:`check_mappo_arguments`; ``load``, ``save``) and ``python -m sb3_saeir.train`` (the device,
+through :func:`sb3_saeir.command_line.check_arguments`). The checks of a saved model (``load``'s file,
+``set_parameters``' parameters) are in :mod:`sb3_saeir.common.saved_model_checks`, those of ``learn`` and
+``set_parameters``' other arguments in :mod:`sb3_saeir.common.method_arguments`.
 """
 
 from __future__ import annotations
@@ -24,9 +24,18 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
+from sb3_saeir.common.compilation import check_compile_setting
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
+from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
-from sb3_saeir.common.utils import check_bool, check_number, check_writable_folder, unwritable_folder, user_stacklevel
+from sb3_saeir.common.utils import (
+    check_bool,
+    check_number,
+    check_seed,
+    check_writable_folder,
+    unwritable_folder,
+    user_stacklevel,
+)
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
 # The largest agent-step count a budget may have: integers up to 2**53 are exact as floats (SB3's progress and the
@@ -58,6 +67,116 @@ _INTEGER_ARGUMENTS = ("n_steps", "n_epochs", "n_minibatches", "data_chunk_length
 _BOOL_ARGUMENTS = ("normalize_advantage", "normalize_values")
 VALUE_CLIPPING_OFF = -1  # the clip_range_vf that turns value clipping off
 _ENV_EXAMPLE = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
+
+
+# ------------------------------------------------------------------------------------------------ the constructor
+def check_mappo_arguments(
+    algo_name: str,
+    *,
+    env: Any,
+    learning_rate: Any,
+    n_steps: Any,
+    n_epochs: Any,
+    gamma: Any,
+    gae_lambda: Any,
+    clip_range: Any,
+    clip_range_vf: Any,
+    normalize_advantage: Any,
+    ent_coef: Any,
+    vf_coef: Any,
+    max_grad_norm: Any,
+    use_sde: Any,
+    n_minibatches: Any,
+    data_chunk_length: Any,
+    intrinsic_reward: Any,
+    intrinsic_coef: Any,
+    intrinsic_kwargs: Any,
+    normalize_values: Any,
+    value_loss: Any,
+    huber_delta: Any,
+    target_kl: Any,
+    double_buffered: Any,
+    compile: Any,
+    stats_window_size: Any,
+    tensorboard_log: Any,
+    policy_kwargs: Any,
+    verbose: Any,
+    seed: Any,
+    device: Any,
+) -> tuple[BaseCallback | None, int | None]:
+    """The checks of :class:`~sb3_saeir.MAPPO`'s constructor (and so :class:`~sb3_saeir.SAEIR_PPO`'s), before SB3
+    builds anything; the first bad argument is refused in one line. In order: the env, ``compile``, the numbers
+    (:func:`check_ranges`), the switches, ``use_sde``, ``policy_kwargs``, the intrinsic reward (its callback is built
+    here), ``tensorboard_log``, ``verbose``, ``device``, ``double_buffered``, ``value_loss`` and ``seed``. The split
+    into minibatches needs the env's games: :func:`resolve_minibatches`, after SB3's constructor.
+
+    Each argument is the constructor's argument of that name (:class:`~sb3_saeir.MAPPO` documents them).
+
+    :param algo_name: class name for the message
+    :param env: ``env``
+    :param learning_rate: ``learning_rate`` (a schedule passes)
+    :param n_steps: ``n_steps``
+    :param n_epochs: ``n_epochs``
+    :param gamma: ``gamma``
+    :param gae_lambda: ``gae_lambda``
+    :param clip_range: ``clip_range`` (a schedule passes)
+    :param clip_range_vf: ``clip_range_vf`` (a schedule and ``None`` pass)
+    :param normalize_advantage: ``normalize_advantage``
+    :param ent_coef: ``ent_coef``
+    :param vf_coef: ``vf_coef``
+    :param max_grad_norm: ``max_grad_norm``
+    :param use_sde: ``use_sde``
+    :param n_minibatches: ``n_minibatches``
+    :param data_chunk_length: ``data_chunk_length``
+    :param intrinsic_reward: ``intrinsic_reward``
+    :param intrinsic_coef: ``intrinsic_coef``
+    :param intrinsic_kwargs: ``intrinsic_kwargs``
+    :param normalize_values: ``normalize_values``
+    :param value_loss: ``value_loss``
+    :param huber_delta: ``huber_delta``
+    :param target_kl: ``target_kl``
+    :param double_buffered: ``double_buffered``
+    :param compile: ``compile``
+    :param stats_window_size: ``stats_window_size``
+    :param tensorboard_log: ``tensorboard_log``
+    :param policy_kwargs: ``policy_kwargs``
+    :param verbose: ``verbose``
+    :param seed: ``seed``
+    :param device: ``device``
+    :return: the intrinsic-reward callback (:func:`check_intrinsic_reward`; ``None`` without a bonus), for the
+        algorithm to add at ``learn``, and the seed as a Python ``int`` (or ``None``)
+    """
+    check_env_argument(algo_name, env)
+    check_compile_setting(algo_name, compile)
+    check_ranges(
+        algo_name,
+        learning_rate=learning_rate,
+        n_steps=n_steps,
+        n_epochs=n_epochs,
+        gamma=gamma,
+        gae_lambda=gae_lambda,
+        clip_range=clip_range,
+        ent_coef=ent_coef,
+        vf_coef=vf_coef,
+        max_grad_norm=max_grad_norm,
+        n_minibatches=n_minibatches,
+        data_chunk_length=data_chunk_length,
+        intrinsic_coef=intrinsic_coef,
+        huber_delta=huber_delta,
+        target_kl=target_kl,
+        clip_range_vf=clip_range_vf,
+        stats_window_size=stats_window_size,
+    )
+    check_bool(algo_name, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
+    check_use_sde(algo_name, use_sde)
+    check_policy_kwargs(algo_name, policy_kwargs)
+    bonus = check_intrinsic_reward(algo_name, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
+    check_tensorboard_log(algo_name, tensorboard_log)
+    check_verbose(algo_name, verbose)
+    check_device(algo_name, device)
+    check_double_buffered(algo_name, double_buffered)
+    check_value_loss(algo_name, value_loss)
+    return bonus, check_seed(algo_name, seed)
 
 
 # ------------------------------------------------------------------------------------------------ numbers and switches
@@ -96,6 +215,33 @@ def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool =
         check_tensorboard_log(algo_name, overrides["tensorboard_log"])
     if "verbose" in overrides:
         check_verbose(algo_name, overrides["verbose"])
+
+
+def check_use_sde(algo_name: str, use_sde: Any) -> None:
+    """Refuse ``use_sde`` other than ``False``: generalized State-Dependent Exploration is not supported (SB3's ``PPO``
+    argument, taken so that PPO hyperparameters that set it off still apply).
+
+    :param algo_name: class name for the message
+    :param use_sde: ``use_sde`` argument
+    """
+    check_bool(algo_name, use_sde=use_sde)
+    if use_sde:
+        raise ValueError(f"{algo_name}: use_sde=True is not supported: {GSDE_UNSUPPORTED}.")
+
+
+def check_policy_kwargs(algo_name: str, policy_kwargs: Any) -> None:
+    """Refuse ``policy_kwargs`` that are not a dict (``None`` passes), and a ``normalize_values`` in them that is not a
+    bool. The policy checks its own keys when it is built.
+
+    :param algo_name: class name for the message
+    :param policy_kwargs: ``policy_kwargs`` argument
+    """
+    if policy_kwargs is None:
+        return
+    if not isinstance(policy_kwargs, dict):
+        raise TypeError(f"{algo_name}: policy_kwargs must be a dict, such as dict(hidden_size=64), got {policy_kwargs!r}.")
+    if "normalize_values" in policy_kwargs:
+        check_bool(algo_name, normalize_values=policy_kwargs["normalize_values"])
 
 
 def check_value_loss(algo_name: str, value_loss: Any) -> None:

@@ -29,9 +29,8 @@ from sb3_saeir.common import checks, method_arguments, saved_model_checks
 from sb3_saeir.common.atomic import save_zip
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
-from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
+from sb3_saeir.common.compilation import resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
-from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
 from sb3_saeir.common.type_aliases import MultiAgentStates
 from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed, user_stacklevel
@@ -166,45 +165,40 @@ class MAPPO(OnPolicyAlgorithm):
         device: th.device | str = "cpu",
         _init_setup_model: bool = True,
     ) -> None:
-        checks.check_env_argument(type(self).__name__, env)
-        check_compile_setting(type(self).__name__, compile)
-        checks.check_ranges(
+        # the callback of the intrinsic reward is built once, here: learn() adds it (docs/guide/algorithms.md)
+        self._bonus, seed = checks.check_mappo_arguments(
             type(self).__name__,
+            env=env,
             learning_rate=learning_rate,
             n_steps=n_steps,
             n_epochs=n_epochs,
             gamma=gamma,
             gae_lambda=gae_lambda,
             clip_range=clip_range,
+            clip_range_vf=clip_range_vf,
+            normalize_advantage=normalize_advantage,
             ent_coef=ent_coef,
             vf_coef=vf_coef,
             max_grad_norm=max_grad_norm,
+            use_sde=use_sde,
             n_minibatches=n_minibatches,
             data_chunk_length=data_chunk_length,
+            intrinsic_reward=intrinsic_reward,
             intrinsic_coef=intrinsic_coef,
+            intrinsic_kwargs=intrinsic_kwargs,
+            normalize_values=normalize_values,
+            value_loss=value_loss,
             huber_delta=huber_delta,
             target_kl=target_kl,
-            clip_range_vf=clip_range_vf,
+            double_buffered=double_buffered,
+            compile=compile,
             stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
         )
-        check_bool(type(self).__name__, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
-        check_bool(type(self).__name__, use_sde=use_sde)
-        if use_sde:
-            raise ValueError(f"{type(self).__name__}: use_sde=True is not supported: {GSDE_UNSUPPORTED}.")
-        if policy_kwargs is not None and not isinstance(policy_kwargs, dict):
-            raise TypeError(
-                f"{type(self).__name__}: policy_kwargs must be a dict, such as dict(hidden_size=64), got {policy_kwargs!r}."
-            )
-        if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
-            check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
-        # built once: the callback learn() adds (docs/guide/algorithms.md)
-        self._bonus = checks.check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
-        checks.check_tensorboard_log(type(self).__name__, tensorboard_log)
-        checks.check_verbose(type(self).__name__, verbose)
-        checks.check_device(type(self).__name__, device)
-        checks.check_double_buffered(type(self).__name__, double_buffered)
-        checks.check_value_loss(type(self).__name__, value_loss)
-        seed = check_seed(type(self).__name__, seed)
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]

@@ -11,6 +11,7 @@ import json
 import os
 import pathlib
 import pickle
+import warnings
 import zipfile
 from collections.abc import Iterable, Iterator
 from typing import Any
@@ -21,6 +22,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_saeir.common.checks import check_n_agents
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
 from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
+from sb3_saeir.common.utils import PACKAGE_VERSION, user_stacklevel
 
 
 # ------------------------------------------------------------------------------------------------ loading
@@ -96,6 +98,24 @@ def check_saved_model(algo_name: str, path: Any, data: dict[str, Any], env: Any)
     n_agents = data.get("n_agents")
     if isinstance(env, VecEnv) and isinstance(n_agents, int) and not isinstance(n_agents, bool):
         check_n_agents(algo_name, env, n_agents)
+
+
+def warn_other_version(algo_name: str, path: Any, data: dict[str, Any] | None) -> None:
+    """One warning line when the model was saved by another sb3-saeir version (``save`` records it in the zip's
+    ``data``); a model saved before the version was recorded, or by another library, loads without one.
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``load``
+    :param data: the zip's ``data`` (:func:`saved_data`), or ``None``
+    """
+    saved_version = (data or {}).get("sb3_saeir_version")
+    if isinstance(saved_version, str) and saved_version != PACKAGE_VERSION:
+        warnings.warn(
+            f"{algo_name}.load: {path} was saved by sb3-saeir {saved_version}; this is {PACKAGE_VERSION}. It loads; "
+            "check the CHANGELOG before comparing its results with this version's.",
+            UserWarning,
+            stacklevel=user_stacklevel(),
+        )
 
 
 def _foreign_policy(data: dict[str, Any]) -> tuple[str, str] | None:

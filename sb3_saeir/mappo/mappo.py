@@ -9,7 +9,6 @@ from __future__ import annotations
 import io
 import os
 import pathlib
-import warnings
 from collections.abc import Iterable
 from typing import Any, ClassVar, TypeVar
 
@@ -33,7 +32,7 @@ from sb3_saeir.common.compilation import resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
 from sb3_saeir.common.type_aliases import MultiAgentStates
-from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed, user_stacklevel
+from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback  # importing sb3_saeir.intrinsic registers its bonuses
 from sb3_saeir.mappo.losses import actor_losses, critic_loss, scale_advantage_weights
 
@@ -455,13 +454,16 @@ class MAPPO(OnPolicyAlgorithm):
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfMAPPO:
-        if isinstance(total_timesteps, float) and float(total_timesteps).is_integer():
-            total_timesteps = int(total_timesteps)  # 1e6, as SB3 takes it (a fraction is refused below)
-        checks.check_ranges(type(self).__name__, total_timesteps=total_timesteps)
-        method_arguments.check_callback(f"{type(self).__name__}.learn", callback)
-        method_arguments.check_log_interval(f"{type(self).__name__}.learn", log_interval)
-        owner = f"{type(self).__name__}.learn"
-        method_arguments.check_learn_options(owner, self.env, tb_log_name, reset_num_timesteps, progress_bar)
+        total_timesteps = method_arguments.check_learn_arguments(
+            type(self).__name__,
+            self.env,
+            total_timesteps,
+            callback,
+            log_interval,
+            tb_log_name,
+            reset_num_timesteps,
+            progress_bar,
+        )
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
@@ -484,36 +486,18 @@ class MAPPO(OnPolicyAlgorithm):
     ) -> SelfMAPPO:
         """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``; ``compile``
         is a keyword argument, not a custom object), the env's ``n_agents`` checked against the model's (as
-        :meth:`set_env`, before SB3 compares the spaces), and one line for a path where there is no file or a folder
-        (:func:`~sb3_saeir.common.saved_model_checks.check_load_arguments`), a model of another library
-        (:func:`~sb3_saeir.common.saved_model_checks.check_saved_model`), a file that is not a complete model zip, or
-        ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit (recurrent against
-        feed-forward, other sizes: :func:`~sb3_saeir.common.saved_model_checks.model_zip_errors`). A model saved by another
-        sb3-saeir version (``save`` records it) loads with a one-line warning naming both versions."""
+        :meth:`set_env`, before SB3 compares the spaces), and one line for a path where there is no file or a folder,
+        a model of another library (:func:`~sb3_saeir.common.method_arguments.check_load`), a file that is not a
+        complete model zip, or ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit
+        (recurrent against feed-forward, other sizes: :func:`~sb3_saeir.common.saved_model_checks.model_zip_errors`).
+        A model saved by another sb3-saeir version (``save`` records it) loads with a one-line warning naming both
+        versions."""
         name = cls.__name__
-        method_arguments.check_custom_objects(f"{name}.load", custom_objects)
-        overrides = {**(custom_objects or {}), **kwargs}
-        checks.check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
-        if "seed" in kwargs:
-            kwargs["seed"] = check_seed(name, kwargs["seed"])
-        checks.check_device(name, device)
-        if env is not None:
-            checks.check_env_argument(name, env)
-        saved_model_checks.check_load_arguments(name, path, custom_objects)
-        data = saved_model_checks.saved_data(path)
-        if data is not None:
-            saved_model_checks.check_saved_model(name, path, data, env)
+        kwargs, data = method_arguments.check_load(name, path, env, device, custom_objects, kwargs)
         with saved_model_checks.model_zip_errors(name, path, custom_objects):
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
-        model._apply_overrides(overrides)
-        saved_version = (data or {}).get("sb3_saeir_version")
-        if isinstance(saved_version, str) and saved_version != PACKAGE_VERSION:
-            warnings.warn(
-                f"{name}.load: {path} was saved by sb3-saeir {saved_version}; this is {PACKAGE_VERSION}. It loads; "
-                "check the CHANGELOG before comparing its results with this version's.",
-                UserWarning,
-                stacklevel=user_stacklevel(),
-            )
+        model._apply_overrides({**(custom_objects or {}), **kwargs})
+        saved_model_checks.warn_other_version(name, path, data)
         return model
 
     def _apply_overrides(self, overrides: dict[str, Any]) -> None:
@@ -542,10 +526,10 @@ class MAPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
     ) -> None:
         """SB3's ``set_parameters``; with ``exact_match``, the parameters of a recurrent network given to a
-        feed-forward model (or the reverse) are refused in one line before any is set
-        (:func:`~sb3_saeir.common.saved_model_checks.check_network_kind`; torch's ``load_state_dict`` error listed every
-        GRU key), and so are parameters with entries missing or unknown to the model
-        (:func:`~sb3_saeir.common.saved_model_checks.check_parameter_names`; torch set the others first).
+        feed-forward model (or the reverse) are refused in one line before any is set (torch's ``load_state_dict``
+        error listed every GRU key), and so are parameters with entries missing or unknown to the model (torch set the
+        others first) and, with any ``exact_match``, of another shape
+        (:func:`~sb3_saeir.common.method_arguments.check_parameters`).
 
         :param load_path_or_dict: a model zip (path or file object), or a dict of state dicts as ``get_parameters``
             returns it
@@ -560,12 +544,7 @@ class MAPPO(OnPolicyAlgorithm):
         else:
             method_arguments.check_parameters_file(owner, load_path_or_dict)
             _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
-        saved_policy = params.get("policy")
-        if exact_match and getattr(self, "policy", None) is not None:
-            if isinstance(saved_policy, dict):
-                saved_model_checks.check_network_kind(owner, saved_policy, self.policy)
-            saved_model_checks.check_parameter_names(owner, params, self)
-        method_arguments.check_parameter_shapes(owner, params, self)
+        method_arguments.check_parameters(owner, params, self, exact_match)
         super().set_parameters(params, exact_match=exact_match, device=device)
 
     def set_random_seed(self, seed: int | None = None) -> None:

@@ -31,8 +31,9 @@ import torch as th
 
 from sb3_saeir.experiment import Experiment
 from sb3_saeir.intrinsic import saeir_bonus
+from sb3_saeir.intrinsic.saeir import SAEIR_VARIANTS
 
-READINGS = ("code", "paper", "supplement")
+READINGS = SAEIR_VARIANTS
 FIG3 = {"fire_rate": 13 / 26, "fired_mean": "0.012-0.015", "step0": "about 0"}
 
 

@@ -2,22 +2,19 @@
 argument, the value and the fix, before anything is built or written (``docs/guide/algorithms.md``).
 
 One implementation per check, used by every caller: :class:`~sb3_saeir.MAPPO` / :class:`~sb3_saeir.SAEIR_PPO`
-(constructor, ``load``, ``save``) and ``python -m sb3_saeir.train`` (the device, through
-:func:`sb3_saeir.command_line.check_arguments`).
+(constructor: :func:`check_mappo_arguments`; ``load``, ``save``) and ``python -m sb3_saeir.train`` (the device,
+through :func:`sb3_saeir.command_line.check_arguments`). The checks of a saved model (``load``'s file,
+``set_parameters``' parameters) are in :mod:`sb3_saeir.common.saved_model_checks`, those of ``learn`` and
+``set_parameters``' other arguments in :mod:`sb3_saeir.common.method_arguments`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import inspect
-import json
-import math
 import os
 import pathlib
-import pickle
 import warnings
-import zipfile
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -27,10 +24,18 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, n_blocks
+from sb3_saeir.common.compilation import check_compile_setting
 from sb3_saeir.common.policies import MultiAgentActorCriticPolicy
+from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.registry import INTRINSIC_REWARDS, list_tasks
-from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
-from sb3_saeir.common.utils import check_bool, check_writable_folder, unwritable_folder, user_stacklevel
+from sb3_saeir.common.utils import (
+    check_bool,
+    check_number,
+    check_seed,
+    check_writable_folder,
+    unwritable_folder,
+    user_stacklevel,
+)
 from sb3_saeir.common.vec_env.game_checks import check_action_space
 
 # The largest agent-step count a budget may have: integers up to 2**53 are exact as floats (SB3's progress and the
@@ -64,9 +69,121 @@ VALUE_CLIPPING_OFF = -1  # the clip_range_vf that turns value clipping off
 _ENV_EXAMPLE = "make_multiagent_vec_env('cn-sparse-n3', n_games=16)"
 
 
+# ------------------------------------------------------------------------------------------------ the constructor
+def check_mappo_arguments(
+    algo_name: str,
+    *,
+    env: Any,
+    learning_rate: Any,
+    n_steps: Any,
+    n_epochs: Any,
+    gamma: Any,
+    gae_lambda: Any,
+    clip_range: Any,
+    clip_range_vf: Any,
+    normalize_advantage: Any,
+    ent_coef: Any,
+    vf_coef: Any,
+    max_grad_norm: Any,
+    use_sde: Any,
+    n_minibatches: Any,
+    data_chunk_length: Any,
+    intrinsic_reward: Any,
+    intrinsic_coef: Any,
+    intrinsic_kwargs: Any,
+    normalize_values: Any,
+    value_loss: Any,
+    huber_delta: Any,
+    target_kl: Any,
+    double_buffered: Any,
+    compile: Any,
+    stats_window_size: Any,
+    tensorboard_log: Any,
+    policy_kwargs: Any,
+    verbose: Any,
+    seed: Any,
+    device: Any,
+) -> tuple[BaseCallback | None, int | None]:
+    """The checks of :class:`~sb3_saeir.MAPPO`'s constructor (and so :class:`~sb3_saeir.SAEIR_PPO`'s), before SB3
+    builds anything; the first bad argument is refused in one line. In order: the env, ``compile``, the numbers
+    (:func:`check_ranges`), the switches, ``use_sde``, ``policy_kwargs``, the intrinsic reward (its callback is built
+    here), ``tensorboard_log``, ``verbose``, ``device``, ``double_buffered``, ``value_loss`` and ``seed``. The split
+    into minibatches needs the env's games: :func:`resolve_minibatches`, after SB3's constructor.
+
+    Each argument is the constructor's argument of that name (:class:`~sb3_saeir.MAPPO` documents them).
+
+    :param algo_name: class name for the message
+    :param env: ``env``
+    :param learning_rate: ``learning_rate`` (a schedule passes)
+    :param n_steps: ``n_steps``
+    :param n_epochs: ``n_epochs``
+    :param gamma: ``gamma``
+    :param gae_lambda: ``gae_lambda``
+    :param clip_range: ``clip_range`` (a schedule passes)
+    :param clip_range_vf: ``clip_range_vf`` (a schedule and ``None`` pass)
+    :param normalize_advantage: ``normalize_advantage``
+    :param ent_coef: ``ent_coef``
+    :param vf_coef: ``vf_coef``
+    :param max_grad_norm: ``max_grad_norm``
+    :param use_sde: ``use_sde``
+    :param n_minibatches: ``n_minibatches``
+    :param data_chunk_length: ``data_chunk_length``
+    :param intrinsic_reward: ``intrinsic_reward``
+    :param intrinsic_coef: ``intrinsic_coef``
+    :param intrinsic_kwargs: ``intrinsic_kwargs``
+    :param normalize_values: ``normalize_values``
+    :param value_loss: ``value_loss``
+    :param huber_delta: ``huber_delta``
+    :param target_kl: ``target_kl``
+    :param double_buffered: ``double_buffered``
+    :param compile: ``compile``
+    :param stats_window_size: ``stats_window_size``
+    :param tensorboard_log: ``tensorboard_log``
+    :param policy_kwargs: ``policy_kwargs``
+    :param verbose: ``verbose``
+    :param seed: ``seed``
+    :param device: ``device``
+    :return: the intrinsic-reward callback (:func:`check_intrinsic_reward`; ``None`` without a bonus), for the
+        algorithm to add at ``learn``, and the seed as a Python ``int`` (or ``None``)
+    """
+    check_env_argument(algo_name, env)
+    check_compile_setting(algo_name, compile)
+    check_ranges(
+        algo_name,
+        learning_rate=learning_rate,
+        n_steps=n_steps,
+        n_epochs=n_epochs,
+        gamma=gamma,
+        gae_lambda=gae_lambda,
+        clip_range=clip_range,
+        ent_coef=ent_coef,
+        vf_coef=vf_coef,
+        max_grad_norm=max_grad_norm,
+        n_minibatches=n_minibatches,
+        data_chunk_length=data_chunk_length,
+        intrinsic_coef=intrinsic_coef,
+        huber_delta=huber_delta,
+        target_kl=target_kl,
+        clip_range_vf=clip_range_vf,
+        stats_window_size=stats_window_size,
+    )
+    check_bool(algo_name, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
+    check_use_sde(algo_name, use_sde)
+    check_policy_kwargs(algo_name, policy_kwargs)
+    bonus = check_intrinsic_reward(algo_name, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
+    check_tensorboard_log(algo_name, tensorboard_log)
+    check_verbose(algo_name, verbose)
+    check_device(algo_name, device)
+    check_double_buffered(algo_name, double_buffered)
+    check_value_loss(algo_name, value_loss)
+    return bonus, check_seed(algo_name, seed)
+
+
 # ------------------------------------------------------------------------------------------------ numbers and switches
 def check_ranges(algo_name: str, **values: Any) -> None:
-    """Raise a ``ValueError`` naming the first argument outside its valid range (``None`` and schedules pass).
+    """Check the algorithms' numeric arguments against their ranges (``_RANGES``), in the order given, with
+    :func:`~sb3_saeir.common.utils.check_number`: the first one that is no number, or outside its range, is refused
+    in one line (``None`` and schedules pass).
 
     :param algo_name: class name for the message
     :param values: argument name -> value, for names in ``_RANGES``
@@ -74,13 +191,8 @@ def check_ranges(algo_name: str, **values: Any) -> None:
     for name, value in values.items():
         if value is None or callable(value):
             continue
-        if name in _INTEGER_ARGUMENTS and (isinstance(value, bool) or not isinstance(value, (int, np.integer))):
-            raise ValueError(f"{algo_name}: {name} must be an integer, got {value!r}.")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(float(value)):
-            raise ValueError(f"{algo_name}: {name} must be a finite number, got {value!r}.")
         test, rule = _RANGES[name]
-        if not test(float(value)):
-            raise ValueError(f"{algo_name}: {name}={value!r} is out of range; it must be {rule}.")
+        check_number(algo_name, name, value, rule, test, integer=name in _INTEGER_ARGUMENTS, out_of_range=True)
 
 
 def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool = False) -> None:
@@ -103,6 +215,33 @@ def check_overrides(algo_name: str, overrides: dict[str, Any], inference: bool =
         check_tensorboard_log(algo_name, overrides["tensorboard_log"])
     if "verbose" in overrides:
         check_verbose(algo_name, overrides["verbose"])
+
+
+def check_use_sde(algo_name: str, use_sde: Any) -> None:
+    """Refuse ``use_sde`` other than ``False``: generalized State-Dependent Exploration is not supported (SB3's ``PPO``
+    argument, taken so that PPO hyperparameters that set it off still apply).
+
+    :param algo_name: class name for the message
+    :param use_sde: ``use_sde`` argument
+    """
+    check_bool(algo_name, use_sde=use_sde)
+    if use_sde:
+        raise ValueError(f"{algo_name}: use_sde=True is not supported: {GSDE_UNSUPPORTED}.")
+
+
+def check_policy_kwargs(algo_name: str, policy_kwargs: Any) -> None:
+    """Refuse ``policy_kwargs`` that are not a dict (``None`` passes), and a ``normalize_values`` in them that is not a
+    bool. The policy checks its own keys when it is built.
+
+    :param algo_name: class name for the message
+    :param policy_kwargs: ``policy_kwargs`` argument
+    """
+    if policy_kwargs is None:
+        return
+    if not isinstance(policy_kwargs, dict):
+        raise TypeError(f"{algo_name}: policy_kwargs must be a dict, such as dict(hidden_size=64), got {policy_kwargs!r}.")
+    if "normalize_values" in policy_kwargs:
+        check_bool(algo_name, normalize_values=policy_kwargs["normalize_values"])
 
 
 def check_value_loss(algo_name: str, value_loss: Any) -> None:
@@ -422,289 +561,3 @@ def check_save_path(algo_name: str, path: Any) -> None:
         raise ValueError(f"{algo_name}.save: cannot write {str(target)!r}: {problem}; save to a folder you can write.")
     if target.exists() and not os.access(target, os.W_OK):
         raise ValueError(f"{algo_name}.save: {str(target)!r} exists and is not writable; save to another path.")
-
-
-# ------------------------------------------------------------------------------------------------ loading
-def check_load_arguments(algo_name: str, path: Any, custom_objects: dict[str, Any] | None) -> None:
-    """Refuse, before SB3's ``load`` reads anything: a path that is no file (SB3 named ``<path>.zip``, the second
-    name it tries, or failed on a folder) and a ``compile`` in ``custom_objects`` (SB3 replaces only what the zip
-    holds, and ``compile`` is not saved: it was ignored).
-
-    :param algo_name: class name for the message
-    :param path: the ``path`` argument of ``load`` (a file object passes)
-    :param custom_objects: the ``custom_objects`` argument of ``load``
-    :raises FileNotFoundError: for a path where there is no file
-    :raises IsADirectoryError: for a folder
-    :raises ValueError: for ``compile`` in ``custom_objects``
-    """
-    if "compile" in (custom_objects or {}):
-        raise ValueError(
-            f"{algo_name}.load: custom_objects 'compile' is not used (compile is not saved with a model); pass it as "
-            f"{algo_name}.load(path, compile=...)."
-        )
-    if not isinstance(path, (str, os.PathLike)):
-        return
-    target = pathlib.Path(path)
-    if target.is_dir():
-        raise IsADirectoryError(
-            f"{algo_name}.load: {str(path)!r} is a folder, not a model zip; give the path of a zip file, such as "
-            f"{str(target / 'model.zip')!r}."
-        )
-    if not target.exists() and not pathlib.Path(f"{path}.zip").exists():  # SB3 reads <path>, else <path>.zip
-        raise FileNotFoundError(f"{algo_name}.load: no such file {str(path)!r}.")
-
-
-def saved_data(path: Any) -> dict[str, Any] | None:
-    """The ``data`` entry of an SB3 model zip as JSON, read without loading the model (``None`` when it cannot be
-    read: SB3's ``load`` then names the damage). A file object is read and put back where it was.
-
-    :param path: the ``path`` argument of ``load``: a path (``<path>.zip`` when ``<path>`` is no file, as SB3 reads
-        it) or a binary file object
-    """
-    if isinstance(path, (str, os.PathLike)):
-        source: Any = path if pathlib.Path(path).is_file() else pathlib.Path(f"{path}.zip")
-        position = None
-    else:
-        try:
-            source, position = path, path.tell()
-        except (AttributeError, OSError):  # a file object that cannot go back: left to SB3
-            return None
-    try:
-        return read_zip_data(source)  # None for a damaged or foreign file: SB3's load names it
-    finally:
-        if position is not None:
-            path.seek(position)
-
-
-def check_saved_model(algo_name: str, path: Any, data: dict[str, Any], env: Any) -> None:
-    """Refuse a zip that another library saved (its policy class is not a
-    :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy`: SB3 failed on the spaces, or on the missing
-    ``n_agents``), and an env of another number of agents per game than the model's (checked as ``set_env`` does,
-    before SB3's comparison of the observation spaces).
-
-    :param algo_name: class name for the message
-    :param path: the ``path`` argument of ``load``
-    :param data: the zip's ``data`` (:func:`saved_data`)
-    :param env: the ``env`` argument of ``load``
-    """
-    foreign = _foreign_policy(data)
-    if foreign is not None:
-        name, library = foreign
-        raise ValueError(
-            f"{algo_name}.load: {str(path)!r} is a model of another library (its policy class is {name}), not an "
-            f"sb3-saeir model; load it with that library's algorithm class, e.g. {library}'s PPO.load."
-        )
-    n_agents = data.get("n_agents")
-    if isinstance(env, VecEnv) and isinstance(n_agents, int) and not isinstance(n_agents, bool):
-        check_n_agents(algo_name, env, n_agents)
-
-
-def _foreign_policy(data: dict[str, Any]) -> tuple[str, str] | None:
-    """The name of the policy class a zip's ``data`` holds (``policy_class``, as SB3 serialises a class) and its
-    library (the top package of its module) when it is another library's: from a module outside the package and not a
-    :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy` (a user's subclass is the package's); ``None``
-    otherwise, or when the entry is not one SB3 writes.
-
-    :param data: the zip's ``data`` (:func:`~sb3_saeir.common.run_state.read_zip_data`)
-    """
-    entry = data.get("policy_class")
-    module = entry.get("__module__") if isinstance(entry, dict) else None
-    if not isinstance(module, str) or module.split(".")[0] == "sb3_saeir":
-        return None
-    library = module.split(".")[0]
-    policy_class = saved_policy_class(data)
-    if policy_class is None:  # its module is not installed here, or the entry is damaged: named by its module
-        return f"a class of {module}", library
-    if isinstance(policy_class, type) and issubclass(policy_class, MultiAgentActorCriticPolicy):
-        return None
-    return f"{module}.{getattr(policy_class, '__qualname__', policy_class)}", library
-
-
-# ------------------------------------------------------------------------------------------------ saved networks
-# (GRU in the actor, GRUs in the critics) -> how the messages name the network, and the policy_kwargs that build it
-_NETWORK_KINDS: dict[tuple[bool, bool], tuple[str, str]] = {
-    (True, True): ("recurrent", "recurrent=True"),
-    (False, False): ("feed-forward", "recurrent=False"),
-    (False, True): ("recurrent in the critics only", "recurrent=True, recurrent_actor=False"),
-    (True, False): ("recurrent in the actor only", "recurrent=False, recurrent_actor=True"),
-}
-
-
-class NetworkMismatchError(ValueError):
-    """Saved parameters of a recurrent network given to a feed-forward model, or the reverse
-    (:func:`check_network_kind`); :func:`model_zip_errors` says which ``load`` argument caused it.
-
-    :param message: the one line
-    :param saved: (GRU in the actor, GRUs in the critics) of the saved parameters
-    :param built: the same of the model's network
-    """
-
-    def __init__(self, message: str, saved: tuple[bool, bool], built: tuple[bool, bool]) -> None:
-        super().__init__(message)
-        self.saved = saved
-        self.built = built
-
-
-def network_recurrence(state_dict_keys: Iterable[str]) -> tuple[bool, bool]:
-    """(GRU in the actor, GRUs in the critics) of a policy, read from the keys of its state dict.
-
-    :param state_dict_keys: the keys of a :class:`~sb3_saeir.common.policies.MultiAgentActorCriticPolicy`'s state dict
-    """
-    keys = list(state_dict_keys)
-    actor = any(key.startswith("actor.gru.") for key in keys)
-    critics = any(key.startswith("critics.") and ".gru." in key for key in keys)
-    return actor, critics
-
-
-def describe_network(recurrence: tuple[bool, bool]) -> str:
-    """``"recurrent (recurrent=True)"``, ``"feed-forward (recurrent=False)"``, ...: a network's kind and the
-    ``policy_kwargs`` that build it.
-
-    :param recurrence: (GRU in the actor, GRUs in the critics), as :func:`network_recurrence` gives it
-    """
-    kind, settings = _NETWORK_KINDS[recurrence]
-    return f"{kind} ({settings})"
-
-
-def check_network_kind(owner: str, saved_policy: Iterable[str], policy: MultiAgentActorCriticPolicy) -> None:
-    """Refuse saved policy parameters of a recurrent network for a feed-forward model, or the reverse, before any is
-    set (torch's ``load_state_dict`` error listed every GRU key, over many lines).
-
-    :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
-    :param saved_policy: the saved policy's state dict (or its keys)
-    :param policy: the model's policy
-    :raises NetworkMismatchError: one line naming both kinds and the fix
-    """
-    saved, built = network_recurrence(saved_policy), network_recurrence(policy.state_dict())
-    if saved == built:
-        return
-    (saved_kind, saved_settings), (built_kind, built_settings) = _NETWORK_KINDS[saved], _NETWORK_KINDS[built]
-    raise NetworkMismatchError(
-        f"{owner}: the parameters are of a {saved_kind} network ({saved_settings}), this model's network is "
-        f"{built_kind} ({built_settings}); set them on a model built with policy_kwargs {saved_settings} "
-        f"({owner.split('.')[0]}.load(path) builds the saved network).",
-        saved,
-        built,
-    )
-
-
-class ParameterNamesError(ValueError):
-    """Parameters given with ``exact_match`` whose entries are not the model's (:func:`check_parameter_names`);
-    :func:`model_zip_errors` says which ``load`` argument caused it.
-
-    :param message: the one line
-    :param differences: the entries missing and unexpected, for ``load``'s message
-    """
-
-    def __init__(self, message: str, differences: str) -> None:
-        super().__init__(message)
-        self.differences = differences
-
-
-def check_parameter_names(owner: str, params: dict[str, Any], model: Any) -> None:
-    """For ``set_parameters(..., exact_match=True)``: refuse parameters that are not every one of the model's, or
-    that the model does not have, before any is set (torch's ``load_state_dict`` set the tensors it found, then raised
-    over two lines). Optimizer states are left to torch (it checks them before setting any).
-
-    :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
-    :param params: object name (``"policy"``, ``"policy.optimizer"``) -> state dict, as ``get_parameters`` returns them
-    :param model: the model whose parameters are set
-    :raises ValueError: one line naming a few missing and unexpected entries and the fix
-    """
-    from stable_baselines3.common.save_util import recursive_getattr
-
-    expected = list(model._get_torch_save_params()[0])
-    missing = [name for name in expected if name not in params]
-    unexpected = [name for name in params if name not in expected]
-    for name in (name for name in expected if name in params):
-        target, given = recursive_getattr(model, name), params[name]
-        if isinstance(target, th.nn.Module) and isinstance(given, dict):
-            own = target.state_dict()
-            missing += [f"{name}[{key!r}]" for key in own if key not in given]
-            unexpected += [f"{name}[{key!r}]" for key in given if key not in own]
-    if missing or unexpected:
-        found = [f"{what} {_a_few(names)}" for what, names in (("missing", missing), ("unexpected", unexpected)) if names]
-        raise ParameterNamesError(
-            f"{owner}: the parameters are not this model's ({'; '.join(found)}); nothing was set. Pass every entry of "
-            "get_parameters(), or exact_match=False to set only those that match.",
-            "; ".join(found),
-        )
-
-
-def _a_few(names: list[str], shown: int = 3) -> str:
-    """The first ``shown`` names, and how many more."""
-    more = f" and {len(names) - shown} more" if len(names) > shown else ""
-    return ", ".join(names[:shown]) + more
-
-
-@contextlib.contextmanager
-def model_zip_errors(algo_name: str, path: Any, custom_objects: dict[str, Any] | None = None) -> Iterator[None]:
-    """Around SB3's ``load``: the errors it raises for a file that is not a complete model zip (truncated or edited)
-    become one ``ValueError`` line naming the file; the package's own ``ValueError`` (n_agents, ranges) pass through.
-    Where ``custom_objects`` replace the saved ``policy_kwargs`` and the network they build does not take the saved
-    parameters, the line names the override as the cause, not the file.
-
-    :param algo_name: class name for the message
-    :param path: the ``path`` argument of ``load``
-    :param custom_objects: the ``custom_objects`` argument of ``load``
-    """
-    override = (custom_objects or {}).get("policy_kwargs", _NO_OVERRIDE)
-    try:
-        yield
-    except NetworkMismatchError as error:
-        if override is _NO_OVERRIDE:  # the zip's own policy_kwargs and parameters disagree: an edited zip
-            raise _incomplete_model_error(algo_name, path, error) from None
-        raise _override_kind_error(algo_name, path, override, error) from None
-    except ParameterNamesError as error:
-        if override is _NO_OVERRIDE:
-            raise _incomplete_model_error(algo_name, path, error) from None
-        raise _override_error(algo_name, path, override, error.differences) from None
-    except (zipfile.BadZipFile, EOFError, pickle.UnpicklingError, KeyError, RuntimeError, AssertionError) as error:
-        if override is not _NO_OVERRIDE and isinstance(error, RuntimeError) and "loading state_dict" in str(error):
-            lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-            detail = lines[1] if len(lines) > 1 else lines[0]  # torch's first mismatch
-            raise _override_error(algo_name, path, override, detail.rstrip(". ")) from None
-        raise _incomplete_model_error(algo_name, path, error) from None
-    except ValueError as error:
-        # SB3's own ValueErrors for a damaged zip
-        if isinstance(error, json.JSONDecodeError) or "Names of parameters do not match" in str(error):
-            raise _incomplete_model_error(algo_name, path, error) from None
-        raise
-
-
-_NO_OVERRIDE = object()  # model_zip_errors: no policy_kwargs in custom_objects
-
-
-def _incomplete_model_error(algo_name: str, path: Any, error: BaseException) -> ValueError:
-    """One line for a model file that SB3 could not read back."""
-    detail = str(error).splitlines()[0] if str(error) else "no detail"
-    return ValueError(
-        f"{algo_name}.load: {str(path)!r} is not a complete sb3-saeir model zip ({type(error).__name__}: {detail}); "
-        "save the model again with model.save."
-    )
-
-
-def _override_kind_error(algo_name: str, path: Any, override: Any, error: NetworkMismatchError) -> ValueError:
-    """One line for ``custom_objects={"policy_kwargs": ...}`` that build a recurrent network for the saved parameters
-    of a feed-forward one, or the reverse."""
-    items = override.items() if isinstance(override, dict) else ()
-    given = {key: value for key, value in items if key in ("recurrent", "recurrent_actor")}
-    if given:
-        what = ", ".join(f"{key}={value!r}" for key, value in given.items())
-    else:
-        what = f"without recurrent (so {_NETWORK_KINDS[error.built][1]}, the default)"
-    return ValueError(
-        f"{algo_name}.load: custom_objects policy_kwargs {what} does not fit {str(path)!r}, whose network is "
-        f"{describe_network(error.saved)}; drop the policy_kwargs override, or give {_NETWORK_KINDS[error.saved][1]} "
-        "in it (custom_objects replace the saved policy_kwargs whole)."
-    )
-
-
-def _override_error(algo_name: str, path: Any, override: Any, detail: str) -> ValueError:
-    """One line for ``custom_objects={"policy_kwargs": ...}`` that build another network than the saved one (other
-    sizes, other entries), ``detail`` naming the first differences."""
-    return ValueError(
-        f"{algo_name}.load: custom_objects policy_kwargs {override!r} do not fit the network saved in {str(path)!r} "
-        f"({detail}); drop the policy_kwargs override, or repeat the saved policy_kwargs in it "
-        "(custom_objects replace them whole)."
-    )

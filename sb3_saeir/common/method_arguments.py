@@ -1,6 +1,7 @@
-"""Checks of the arguments of an algorithm's methods after construction (``learn``, ``set_parameters``): each bad
+"""Checks of the arguments of an algorithm's methods after construction (``learn``, ``load``, ``set_parameters``): each bad
 argument is one line naming it and what it must be, before SB3 or torch fail on it with their own errors
-(``docs/guide/algorithms.md``). The constructor's checks are in :mod:`sb3_saeir.common.checks`.
+(``docs/guide/algorithms.md``). The constructor's checks are in :mod:`sb3_saeir.common.checks`, those of a saved
+model in :mod:`sb3_saeir.common.saved_model_checks`.
 """
 
 from __future__ import annotations
@@ -11,13 +12,48 @@ from typing import Any
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
-from sb3_saeir.common.checks import ParameterNamesError
-from sb3_saeir.common.utils import check_bool
+from sb3_saeir.common import checks, saved_model_checks
+from sb3_saeir.common.saved_model_checks import ParameterNamesError
+from sb3_saeir.common.utils import check_bool, check_seed
 
 
 class ParameterShapesError(ParameterNamesError):
     """Parameters of another shape than the model's (:func:`check_parameter_shapes`); as for names, ``load`` says
     which of its arguments caused it (``custom_objects`` ``policy_kwargs`` of other sizes, or a damaged zip)."""
+
+
+def check_learn_arguments(
+    algo_name: str,
+    env: Any,
+    total_timesteps: Any,
+    callback: Any,
+    log_interval: Any,
+    tb_log_name: Any,
+    reset_num_timesteps: Any,
+    progress_bar: Any,
+) -> int:
+    """The checks of ``learn``, before SB3 sets anything up, in order: ``total_timesteps`` (a whole float such as
+    ``1e6`` is taken, as SB3 takes it; a fraction is refused), ``callback``, ``log_interval``, then the model's env and
+    the other options (:func:`check_learn_options`).
+
+    :param algo_name: class name for the message
+    :param env: the model's env
+    :param total_timesteps: the ``total_timesteps`` argument (agent-steps)
+    :param callback: the ``callback`` argument
+    :param log_interval: the ``log_interval`` argument
+    :param tb_log_name: the ``tb_log_name`` argument
+    :param reset_num_timesteps: the ``reset_num_timesteps`` argument
+    :param progress_bar: the ``progress_bar`` argument
+    :return: ``total_timesteps`` as an ``int``
+    """
+    if isinstance(total_timesteps, float) and total_timesteps.is_integer():
+        total_timesteps = int(total_timesteps)
+    checks.check_ranges(algo_name, total_timesteps=total_timesteps)
+    owner = f"{algo_name}.learn"
+    check_callback(owner, callback)
+    check_log_interval(owner, log_interval)
+    check_learn_options(owner, env, tb_log_name, reset_num_timesteps, progress_bar)
+    return total_timesteps
 
 
 def check_callback(owner: str, callback: Any) -> None:
@@ -130,3 +166,56 @@ def check_parameters_file(owner: str, path: Any) -> None:
     """
     if isinstance(path, (str, os.PathLike)) and not os.path.isfile(path) and not os.path.isfile(f"{os.fspath(path)}.zip"):
         raise FileNotFoundError(f"{owner}: no such file {os.fspath(path)!r}; pass a model zip or get_parameters()'s dict.")
+
+
+def check_load(
+    algo_name: str, path: Any, env: Any, device: Any, custom_objects: Any, kwargs: dict[str, Any]
+) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """The checks of ``load``, before SB3 reads the model, in order: ``custom_objects``, the constructor's checks on
+    the overrides (``kwargs`` and ``custom_objects``: :func:`~sb3_saeir.common.checks.check_overrides`; with
+    ``custom_objects={"learning_rate": 0.0}``, rl-zoo3's load for inference, ``learning_rate`` is not checked), the
+    ``seed`` override, ``device``, ``env``, the path (:func:`~sb3_saeir.common.saved_model_checks.check_load_arguments`)
+    and the saved model against the env (:func:`~sb3_saeir.common.saved_model_checks.check_saved_model`).
+
+    :param algo_name: class name for the message
+    :param path: the ``path`` argument of ``load``
+    :param env: the ``env`` argument of ``load``
+    :param device: the ``device`` argument of ``load``
+    :param custom_objects: the ``custom_objects`` argument of ``load``
+    :param kwargs: the other keyword arguments of ``load`` (attributes set on the loaded model)
+    :return: ``kwargs``, with a ``seed`` as a Python ``int``, and the zip's ``data``
+        (:func:`~sb3_saeir.common.saved_model_checks.saved_data`; ``None`` when it cannot be read)
+    """
+    check_custom_objects(f"{algo_name}.load", custom_objects)
+    overrides = {**(custom_objects or {}), **kwargs}
+    checks.check_overrides(algo_name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
+    if "seed" in kwargs:
+        kwargs = {**kwargs, "seed": check_seed(algo_name, kwargs["seed"])}
+    checks.check_device(algo_name, device)
+    if env is not None:
+        checks.check_env_argument(algo_name, env)
+    saved_model_checks.check_load_arguments(algo_name, path, custom_objects)
+    data = saved_model_checks.saved_data(path)
+    if data is not None:
+        saved_model_checks.check_saved_model(algo_name, path, data, env)
+    return kwargs, data
+
+
+def check_parameters(owner: str, params: dict[str, Any], model: Any, exact_match: bool) -> None:
+    """The checks of the parameters given to ``set_parameters``, before any is set: with ``exact_match`` (and a built
+    policy), a network of the other kind (:func:`~sb3_saeir.common.saved_model_checks.check_network_kind`) and entries
+    missing or unknown (:func:`~sb3_saeir.common.saved_model_checks.check_parameter_names`); then the shapes
+    (:func:`check_parameter_shapes`).
+
+    :param owner: who sets them, for the message (``"MAPPO.set_parameters"``)
+    :param params: object name (``"policy"``, ...) -> state dict, as ``get_parameters`` returns them
+    :param model: the model whose parameters are set
+    :param exact_match: the ``exact_match`` argument (already checked to be a bool)
+    """
+    policy = getattr(model, "policy", None)
+    if exact_match and policy is not None:
+        saved_policy = params.get("policy")
+        if isinstance(saved_policy, dict):
+            saved_model_checks.check_network_kind(owner, saved_policy, policy)
+        saved_model_checks.check_parameter_names(owner, params, model)
+    check_parameter_shapes(owner, params, model)

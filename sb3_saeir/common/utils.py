@@ -90,9 +90,18 @@ def check_bool(owner: str, **values: Any) -> None:
             raise NotABoolError(f"{owner}: {name} must be True or False, got {value!r} ({type(value).__name__}).")
 
 
-def check_number(owner: str, name: str, value: Any, rule: str, test: Callable[[float], bool], integer: bool = False) -> None:
+def check_number(
+    owner: str,
+    name: str,
+    value: Any,
+    rule: str,
+    test: Callable[[float], bool],
+    integer: bool = False,
+    out_of_range: bool = False,
+) -> None:
     """Raise a one-line ``ValueError`` naming ``name`` when ``value`` is not a finite number (a whole one with
-    ``integer``; ``True`` and strings are refused) for which ``test`` holds.
+    ``integer``; booleans and strings are refused) for which ``test`` holds. The one check of a number against a rule:
+    the algorithms' arguments (:func:`~sb3_saeir.common.checks.check_ranges`), the bonuses' and the evaluation's.
 
     :param owner: class or function name for the message
     :param name: the argument's name
@@ -100,12 +109,22 @@ def check_number(owner: str, name: str, value: Any, rule: str, test: Callable[[f
     :param rule: the valid range in words, e.g. ``"> 0"`` or ``"in [0, 1]"``
     :param test: whether a value is in the range
     :param integer: whether the value must be a whole number
+    :param out_of_range: word the refusal as the algorithms' arguments word it: ``"<name> must be an integer, got
+        <value>."`` (or ``a finite number``) for a value that is not one, ``"<name>=<value> is out of range; it must be
+        <rule>."`` for one outside the range; otherwise ``"<name> must be an integer <rule>, got <value>."`` for both
     """
     kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
-    valid = not isinstance(value, (bool, np.bool_)) and isinstance(value, kinds) and math.isfinite(float(value))
-    if not (valid and test(float(value))):
-        kind = "an integer" if integer else "a finite number"
+    is_number = isinstance(value, kinds) and not isinstance(value, (bool, np.bool_))
+    # a whole number is finite (and math.isfinite cannot convert a Python int beyond the float range)
+    is_number = is_number and (isinstance(value, (int, np.integer)) or math.isfinite(value))
+    if is_number and test(value):
+        return
+    kind = "an integer" if integer else "a finite number"
+    if not out_of_range:
         raise ValueError(f"{owner}: {name} must be {kind} {rule}, got {value!r}.")
+    if not is_number:
+        raise ValueError(f"{owner}: {name} must be {kind}, got {value!r}.")
+    raise ValueError(f"{owner}: {name}={value!r} is out of range; it must be {rule}.")
 
 
 def keywords_taken(function: Callable[..., Any]) -> tuple[str, ...] | None:

@@ -10,7 +10,19 @@ from sb3_saeir.common.registry import register_intrinsic_reward
 from sb3_saeir.common.utils import check_bool
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback
 
-_VARIANTS = ("code", "paper", "supplement")
+# The readings of the bonus (``docs/method.md``, "The intrinsic reward"): the released code, the paper's Eqs. 12-14
+# literally, the supplement's Fig. 3.
+SAEIR_VARIANTS = ("code", "paper", "supplement")
+
+
+def check_saeir_variant(variant: str) -> None:
+    """Refuse a SAEIR variant that is not one of :data:`SAEIR_VARIANTS`, in one line naming the choices (the one check,
+    for :func:`saeir_bonus` and :class:`SAEIRCallback`).
+
+    :param variant: the ``variant`` argument
+    """
+    if variant not in SAEIR_VARIANTS:
+        raise ValueError(f"Unknown SAEIR variant {variant!r}; choose one of {SAEIR_VARIANTS}.")
 
 
 def saeir_bonus(
@@ -101,8 +113,7 @@ def saeir_bonus(
         float64 otherwise.
     """
     values = np.asarray(values)
-    if variant not in _VARIANTS:
-        raise ValueError(f"Unknown SAEIR variant {variant!r}, expected one of {_VARIANTS}")
+    check_saeir_variant(variant)
     if values.ndim == 0:
         raise ValueError("`values` must have a leading time axis, got a 0-d array")
     out_dtype = values.dtype if np.issubdtype(values.dtype, np.floating) else np.float64
@@ -323,8 +334,7 @@ class SAEIRCallback(IntrinsicRewardCallback):
     def __init__(
         self, coef: float = 0.1, variant: str = "code", reset_at_episode_start: bool = False, verbose: int = 0
     ) -> None:
-        if variant not in _VARIANTS:
-            raise ValueError(f"Unknown SAEIR variant {variant!r}; choose one of {_VARIANTS}.")
+        check_saeir_variant(variant)
         check_bool("SAEIRCallback", reset_at_episode_start=reset_at_episode_start)
         super().__init__(coef=coef, name="intrinsic", verbose=verbose)
         self.variant = variant

@@ -9,7 +9,6 @@ from __future__ import annotations
 import io
 import os
 import pathlib
-import warnings
 from collections.abc import Iterable
 from typing import Any, ClassVar, TypeVar
 
@@ -25,16 +24,15 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 from stable_baselines3.common.utils import FloatSchedule, explained_variance, obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_saeir.common import checks, method_arguments
+from sb3_saeir.common import checks, method_arguments, saved_model_checks
 from sb3_saeir.common.atomic import save_zip
 from sb3_saeir.common.buffers import GroupedRecurrentRolloutBuffer, split_by_valid_length, valid_rows
 from sb3_saeir.common.callbacks import episode_metric_means, flatten_callbacks
-from sb3_saeir.common.compilation import check_compile_setting, resolve_compile_backend
+from sb3_saeir.common.compilation import resolve_compile_backend
 from sb3_saeir.common.policies import MAPPOPolicy, MSHGPolicy, MultiAgentActorCriticPolicy, SNMAPPOPolicy
-from sb3_saeir.common.policy_arguments import GSDE_UNSUPPORTED
 from sb3_saeir.common.sampling import RolloutCollector, use_double_buffering
 from sb3_saeir.common.type_aliases import MultiAgentStates
-from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed, user_stacklevel
+from sb3_saeir.common.utils import PACKAGE_VERSION, check_bool, check_seed
 from sb3_saeir.intrinsic.base import IntrinsicRewardCallback  # importing sb3_saeir.intrinsic registers its bonuses
 from sb3_saeir.mappo.losses import actor_losses, critic_loss, scale_advantage_weights
 
@@ -166,45 +164,40 @@ class MAPPO(OnPolicyAlgorithm):
         device: th.device | str = "cpu",
         _init_setup_model: bool = True,
     ) -> None:
-        checks.check_env_argument(type(self).__name__, env)
-        check_compile_setting(type(self).__name__, compile)
-        checks.check_ranges(
+        # the callback of the intrinsic reward is built once, here: learn() adds it (docs/guide/algorithms.md)
+        self._bonus, seed = checks.check_mappo_arguments(
             type(self).__name__,
+            env=env,
             learning_rate=learning_rate,
             n_steps=n_steps,
             n_epochs=n_epochs,
             gamma=gamma,
             gae_lambda=gae_lambda,
             clip_range=clip_range,
+            clip_range_vf=clip_range_vf,
+            normalize_advantage=normalize_advantage,
             ent_coef=ent_coef,
             vf_coef=vf_coef,
             max_grad_norm=max_grad_norm,
+            use_sde=use_sde,
             n_minibatches=n_minibatches,
             data_chunk_length=data_chunk_length,
+            intrinsic_reward=intrinsic_reward,
             intrinsic_coef=intrinsic_coef,
+            intrinsic_kwargs=intrinsic_kwargs,
+            normalize_values=normalize_values,
+            value_loss=value_loss,
             huber_delta=huber_delta,
             target_kl=target_kl,
-            clip_range_vf=clip_range_vf,
+            double_buffered=double_buffered,
+            compile=compile,
             stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
         )
-        check_bool(type(self).__name__, normalize_advantage=normalize_advantage, normalize_values=normalize_values)
-        check_bool(type(self).__name__, use_sde=use_sde)
-        if use_sde:
-            raise ValueError(f"{type(self).__name__}: use_sde=True is not supported: {GSDE_UNSUPPORTED}.")
-        if policy_kwargs is not None and not isinstance(policy_kwargs, dict):
-            raise TypeError(
-                f"{type(self).__name__}: policy_kwargs must be a dict, such as dict(hidden_size=64), got {policy_kwargs!r}."
-            )
-        if isinstance(policy_kwargs, dict) and "normalize_values" in policy_kwargs:
-            check_bool(type(self).__name__, normalize_values=policy_kwargs["normalize_values"])
-        # built once: the callback learn() adds (docs/guide/algorithms.md)
-        self._bonus = checks.check_intrinsic_reward(type(self).__name__, intrinsic_reward, intrinsic_coef, intrinsic_kwargs)
-        checks.check_tensorboard_log(type(self).__name__, tensorboard_log)
-        checks.check_verbose(type(self).__name__, verbose)
-        checks.check_device(type(self).__name__, device)
-        checks.check_double_buffered(type(self).__name__, double_buffered)
-        checks.check_value_loss(type(self).__name__, value_loss)
-        seed = check_seed(type(self).__name__, seed)
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]
@@ -461,13 +454,16 @@ class MAPPO(OnPolicyAlgorithm):
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfMAPPO:
-        if isinstance(total_timesteps, float) and float(total_timesteps).is_integer():
-            total_timesteps = int(total_timesteps)  # 1e6, as SB3 takes it (a fraction is refused below)
-        checks.check_ranges(type(self).__name__, total_timesteps=total_timesteps)
-        method_arguments.check_callback(f"{type(self).__name__}.learn", callback)
-        method_arguments.check_log_interval(f"{type(self).__name__}.learn", log_interval)
-        owner = f"{type(self).__name__}.learn"
-        method_arguments.check_learn_options(owner, self.env, tb_log_name, reset_num_timesteps, progress_bar)
+        total_timesteps = method_arguments.check_learn_arguments(
+            type(self).__name__,
+            self.env,
+            total_timesteps,
+            callback,
+            log_interval,
+            tb_log_name,
+            reset_num_timesteps,
+            progress_bar,
+        )
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
@@ -490,36 +486,18 @@ class MAPPO(OnPolicyAlgorithm):
     ) -> SelfMAPPO:
         """SB3's ``load``, with the constructor's checks on overrides (``kwargs`` and ``custom_objects``; ``compile``
         is a keyword argument, not a custom object), the env's ``n_agents`` checked against the model's (as
-        :meth:`set_env`, before SB3 compares the spaces), and one line for a path where there is no file or a folder
-        (:func:`~sb3_saeir.common.checks.check_load_arguments`), a model of another library
-        (:func:`~sb3_saeir.common.checks.check_saved_model`), a file that is not a complete model zip, or
-        ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit (recurrent against
-        feed-forward, other sizes: :func:`~sb3_saeir.common.checks.model_zip_errors`). A model saved by another
-        sb3-saeir version (``save`` records it) loads with a one-line warning naming both versions."""
+        :meth:`set_env`, before SB3 compares the spaces), and one line for a path where there is no file or a folder,
+        a model of another library (:func:`~sb3_saeir.common.method_arguments.check_load`), a file that is not a
+        complete model zip, or ``custom_objects`` ``policy_kwargs`` that build a network the saved parameters do not fit
+        (recurrent against feed-forward, other sizes: :func:`~sb3_saeir.common.saved_model_checks.model_zip_errors`).
+        A model saved by another sb3-saeir version (``save`` records it) loads with a one-line warning naming both
+        versions."""
         name = cls.__name__
-        method_arguments.check_custom_objects(f"{name}.load", custom_objects)
-        overrides = {**(custom_objects or {}), **kwargs}
-        checks.check_overrides(name, overrides, inference=(custom_objects or {}).get("learning_rate") == 0.0)
-        if "seed" in kwargs:
-            kwargs["seed"] = check_seed(name, kwargs["seed"])
-        checks.check_device(name, device)
-        if env is not None:
-            checks.check_env_argument(name, env)
-        checks.check_load_arguments(name, path, custom_objects)
-        data = checks.saved_data(path)
-        if data is not None:
-            checks.check_saved_model(name, path, data, env)
-        with checks.model_zip_errors(name, path, custom_objects):
+        kwargs, data = method_arguments.check_load(name, path, env, device, custom_objects, kwargs)
+        with saved_model_checks.model_zip_errors(name, path, custom_objects):
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
-        model._apply_overrides(overrides)
-        saved_version = (data or {}).get("sb3_saeir_version")
-        if isinstance(saved_version, str) and saved_version != PACKAGE_VERSION:
-            warnings.warn(
-                f"{name}.load: {path} was saved by sb3-saeir {saved_version}; this is {PACKAGE_VERSION}. It loads; "
-                "check the CHANGELOG before comparing its results with this version's.",
-                UserWarning,
-                stacklevel=user_stacklevel(),
-            )
+        model._apply_overrides({**(custom_objects or {}), **kwargs})
+        saved_model_checks.warn_other_version(name, path, data)
         return model
 
     def _apply_overrides(self, overrides: dict[str, Any]) -> None:
@@ -548,10 +526,10 @@ class MAPPO(OnPolicyAlgorithm):
         device: th.device | str = "auto",
     ) -> None:
         """SB3's ``set_parameters``; with ``exact_match``, the parameters of a recurrent network given to a
-        feed-forward model (or the reverse) are refused in one line before any is set
-        (:func:`~sb3_saeir.common.checks.check_network_kind`; torch's ``load_state_dict`` error listed every GRU key),
-        and so are parameters with entries missing or unknown to the model
-        (:func:`~sb3_saeir.common.checks.check_parameter_names`; torch set the others first).
+        feed-forward model (or the reverse) are refused in one line before any is set (torch's ``load_state_dict``
+        error listed every GRU key), and so are parameters with entries missing or unknown to the model (torch set the
+        others first) and, with any ``exact_match``, of another shape
+        (:func:`~sb3_saeir.common.method_arguments.check_parameters`).
 
         :param load_path_or_dict: a model zip (path or file object), or a dict of state dicts as ``get_parameters``
             returns it
@@ -566,12 +544,7 @@ class MAPPO(OnPolicyAlgorithm):
         else:
             method_arguments.check_parameters_file(owner, load_path_or_dict)
             _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
-        saved_policy = params.get("policy")
-        if exact_match and getattr(self, "policy", None) is not None:
-            if isinstance(saved_policy, dict):
-                checks.check_network_kind(owner, saved_policy, self.policy)
-            checks.check_parameter_names(owner, params, self)
-        method_arguments.check_parameter_shapes(owner, params, self)
+        method_arguments.check_parameters(owner, params, self, exact_match)
         super().set_parameters(params, exact_match=exact_match, device=device)
 
     def set_random_seed(self, seed: int | None = None) -> None:

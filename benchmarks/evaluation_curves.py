@@ -38,8 +38,8 @@ import numpy as np
 from sb3_saeir.benchmark import read_rows
 from sb3_saeir.benchmark.reports import format_steps
 from sb3_saeir.command_line import OneLineParser
-from sb3_saeir.run.files import SEGMENTS_FILE
 from sb3_saeir.envs import get_task_spec
+from sb3_saeir.run.files import SEGMENTS_FILE
 
 sys.path.insert(0, str(Path(__file__).parent))
 from random_baseline import random_scores

@@ -187,6 +187,7 @@ def training(
         experiment = Experiment(algo, task, config, seed=seed, n_games=n_games)
         model = experiment.build()
         env, callbacks = experiment.env, experiment.config_callbacks
+        assert env is not None
         n_agents = env.num_envs // n_games
         agent_steps = iterations * model.n_steps * env.num_envs
         cpu_start, start = cpu_seconds(), time.perf_counter()

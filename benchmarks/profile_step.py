@@ -100,6 +100,7 @@ def main() -> None:
     experiment = Experiment(args.algo, args.task, seed=args.seed, n_games=args.n_games)
     model = experiment.build(device=args.device)
     env, callbacks = experiment.env, experiment.config_callbacks
+    assert env is not None
     policy = model.policy
     if not isinstance(policy, MultiAgentActorCriticPolicy):
         raise SystemExit(f"--algo {args.algo}: this script profiles the multi-agent policies (not {type(policy).__name__})")

@@ -180,6 +180,7 @@ def measure_method(
     experiment = Experiment(algo, task, hyperparams, seed=seed, n_games=n_games)
     model = experiment.build(env=env, device=device)
     env, callbacks = experiment.env, experiment.config_callbacks
+    assert env is not None
     policy = model.policy
     policy.forward = timer.wrap("inference", policy.forward)  # type: ignore[method-assign]
     policy.predict_values = timer.wrap("inference", policy.predict_values)  # type: ignore[method-assign]

@@ -14,6 +14,7 @@ from typing import Any
 
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
@@ -136,7 +137,7 @@ class Experiment:
         verbose: int | None = None,
         device: str | None = None,
         tensorboard_log: str | None = None,
-    ) -> BaseAlgorithm:
+    ) -> OnPolicyAlgorithm:
         """Build the training env (unless given) and the model from the config entry
         (:func:`~sb3_saeir.config.model_settings`: its ``policy`` and ``policy_kwargs``, every algorithm argument) with
         the experiment's seed; the entry's ``callback`` entries become :attr:`config_callbacks` (passed to ``learn``
@@ -152,10 +153,9 @@ class Experiment:
         self.env = env if env is not None else self.make_env()
         settings = self._settings(verbose=verbose, device=device, tensorboard_log=tensorboard_log)
         arguments = settings.algorithm_kwargs
-        self.model = ALGOS[self.algo](
-            settings.policy, self.env, policy_kwargs=settings.policy_kwargs, seed=self.seed, **arguments
-        )
-        return self.model
+        model = ALGOS[self.algo](settings.policy, self.env, policy_kwargs=settings.policy_kwargs, seed=self.seed, **arguments)
+        self.model = model
+        return model
 
     def load(
         self,

@@ -29,6 +29,8 @@ from sb3_saeir.common.hypergraph import SCALES
 from sb3_saeir.common.policy_arguments import (
     DEFAULT_GROUP_SIZE,
     check_optimizer_arguments,
+    check_predict_array,
+    check_predict_observation,
     check_sb3_policy_kwargs,
     default_scales,
     warn_degenerate_group_scale,
@@ -42,9 +44,6 @@ from sb3_saeir.common.torch_layers import (
 )
 from sb3_saeir.common.type_aliases import MultiAgentStates
 from sb3_saeir.common.utils import check_bool
-
-# NumPy dtype kinds that predict takes as observations: bool, signed and unsigned integers, floats.
-NUMBER_KINDS = "biuf"
 
 
 class MultiAgentActorCriticPolicy(ActorCriticPolicy):
@@ -499,7 +498,7 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
                 f"{type(state).__name__}; pass state=None (predict returns None as the next state)."
             )
         self.set_training_mode(False)
-        obs_array = self._predict_observations(observation)
+        obs_array = check_predict_observation(observation, tuple(self.observation_space.shape))  # type: ignore[arg-type]
         single = obs_array.ndim == len(self.observation_space.shape)  # type: ignore[arg-type]
         if single:
             obs_array = obs_array[None]
@@ -511,11 +510,11 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
                 hidden = (
                     th.zeros(n_agents, self.hidden_size, device=self.device)
                     if state is None
-                    else th.as_tensor(self._predict_array("state", state, (n_agents, self.hidden_size)), device=self.device)
+                    else th.as_tensor(check_predict_array("state", state, (n_agents, self.hidden_size)), device=self.device)
                 )
             starts = th.zeros(n_agents, device=self.device)
             if episode_start is not None:
-                starts = th.as_tensor(self._predict_array("episode_start", episode_start, (n_agents,)), device=self.device)
+                starts = th.as_tensor(check_predict_array("episode_start", episode_start, (n_agents,)), device=self.device)
             latent_pi, new_hidden = self._actor_latent(obs_tensor.unsqueeze(0), hidden, starts.unsqueeze(0))
             actions = self._distribution(latent_pi.squeeze(0)).get_actions(deterministic=deterministic)
         actions_np = actions.cpu().numpy().reshape((-1, *self.action_space.shape))  # type: ignore[misc, arg-type]
@@ -526,52 +525,6 @@ class MultiAgentActorCriticPolicy(ActorCriticPolicy):
             actions_np = actions_np[0]
             new_state = new_state[0] if new_state is not None else None
         return actions_np, new_state
-
-    def _predict_observations(self, observation: Any) -> np.ndarray:
-        """``observation`` of :meth:`predict` as float32, checked: ``(d,)`` or ``(B, d)`` of finite numbers, of a
-        bool, integer or float dtype (NumPy casts strings such as ``"0.5"`` and complex numbers to float32 without an
-        error).
-
-        :raises ValueError: one line naming ``observation`` and the shape or dtype expected
-        """
-        shape = tuple(self.observation_space.shape)  # type: ignore[arg-type]
-        try:
-            given = np.asarray(observation)
-        except (TypeError, ValueError) as error:
-            raise ValueError(
-                f"predict: observation must be an array of numbers of shape {shape} or (n_agents, *{shape}); {error}"
-            ) from None
-        if given.dtype.kind not in NUMBER_KINDS:
-            raise ValueError(
-                f"predict: the observation must be an array of numbers, got dtype {given.dtype}; pass bool, integer or "
-                "float values."
-            )
-        obs_array = given.astype(np.float32)
-        if obs_array.shape != shape and obs_array.shape[1:] != shape:
-            raise ValueError(
-                f"predict: observation of shape {obs_array.shape} does not match the observation space: expected one "
-                f"agent's {shape} or a batch (n_agents, *{shape})."
-            )
-        if not np.isfinite(obs_array).all():
-            raise ValueError("predict: observation holds NaN or infinite values; pass finite observations.")
-        return obs_array
-
-    @staticmethod
-    def _predict_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
-        """``state`` or ``episode_start`` of :meth:`predict` as float32 of the shape the observations imply.
-
-        :raises ValueError: one line naming the argument and the shape expected
-        """
-        try:
-            array = np.asarray(value, dtype=np.float32)
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"predict: {name} must be an array of numbers of shape {shape}; {error}") from None
-        if array.size != int(np.prod(shape)) or (array.ndim > 0 and array.shape[-1] != shape[-1]):
-            raise ValueError(
-                f"predict: {name} of shape {array.shape} does not match the observations: expected {shape} "
-                "(one row per agent; pass the state predict returned, or None)."
-            )
-        return array.reshape(shape)
 
 
 class MSHGPolicy(MultiAgentActorCriticPolicy):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
+import numpy as np
 import torch as th
 
 from sb3_saeir.common.hypergraph import SCALES
@@ -172,3 +173,58 @@ def warn_degenerate_group_scale(group_size: int) -> None:
         UserWarning,
         stacklevel=user_stacklevel(),
     )
+
+
+# NumPy dtype kinds that predict takes as observations: bool, signed and unsigned integers, floats.
+NUMBER_KINDS = "biuf"
+
+
+def check_predict_observation(observation: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``observation`` of a policy's ``predict`` as float32, checked: ``(d,)`` or ``(B, d)`` of finite numbers, of a
+    bool, integer or float dtype (NumPy casts strings such as ``"0.5"`` and complex numbers to float32 without an
+    error).
+
+    :param observation: what ``predict`` was given
+    :param shape: one agent's observation shape (the observation space's)
+    :raises ValueError: one line naming ``observation`` and the shape or dtype expected
+    """
+    try:
+        given = np.asarray(observation)
+    except (TypeError, ValueError) as error:
+        raise ValueError(
+            f"predict: observation must be an array of numbers of shape {shape} or (n_agents, *{shape}); {error}"
+        ) from None
+    if given.dtype.kind not in NUMBER_KINDS:
+        raise ValueError(
+            f"predict: the observation must be an array of numbers, got dtype {given.dtype}; pass bool, integer or "
+            "float values."
+        )
+    obs_array = given.astype(np.float32)
+    if obs_array.shape != shape and obs_array.shape[1:] != shape:
+        raise ValueError(
+            f"predict: observation of shape {obs_array.shape} does not match the observation space: expected one "
+            f"agent's {shape} or a batch (n_agents, *{shape})."
+        )
+    if not np.isfinite(obs_array).all():
+        raise ValueError("predict: observation holds NaN or infinite values; pass finite observations.")
+    return obs_array
+
+
+def check_predict_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``state`` or ``episode_start`` of a policy's ``predict`` as float32 of the shape the observations imply.
+
+    :param name: the argument's name
+    :param value: what ``predict`` was given
+    :param shape: the shape expected
+    :raises ValueError: one line naming the argument and the shape expected
+    """
+    try:
+        array = np.asarray(value, dtype=np.float32)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"predict: {name} must be an array of numbers of shape {shape}; {error}") from None
+    if array.size != int(np.prod(shape)) or (array.ndim > 0 and array.shape[-1] != shape[-1]):
+        raise ValueError(
+            f"predict: {name} of shape {array.shape} does not match the observations: expected {shape} "
+            "(one row per agent; pass the state predict returned, or None)."
+        )
+    return array.reshape(shape)

@@ -293,7 +293,7 @@ def describe_resume(model: Any, state: dict[str, Any] | None) -> list[str]:
     if not is_exact(model, state):
         return [
             f"the training env ({state['env_type']}) cannot save its state (no get_resume_state: games stepped "
-            "through MultiAgentVecEnv, in-process or in env workers): resuming approximately, the training env "
+            "through MultiAgentDummyVecEnv or MultiAgentSubprocVecEnv): resuming approximately, the training env "
             "restarts from a reset"
         ]
     return []

@@ -32,7 +32,14 @@ from sb3_saeir.run.files import (
     numbered_paths,
 )
 from sb3_saeir.run.lock import RunFolderInUseError, RunFolderLock, RunFolderWatch
-from sb3_saeir.run.record import extended_budget, read_run_file, read_spec_file, spec_differences, write_spec_file
+from sb3_saeir.run.record import (
+    extended_budget,
+    newest_loading_checkpoint,
+    read_run_file,
+    read_spec_file,
+    spec_differences,
+    write_spec_file,
+)
 
 # How a command makes a settings record of a run of an older version (its <task>/args.yml and <task>/config.yml).
 LegacyRecord = Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
@@ -401,3 +408,42 @@ def check_run_folder_writable(folder: Path, refused: str = "--resume", copy: str
             f"{refused}: the run in {folder} cannot go on there ({problem}); make the folder and its files writable "
             f"(e.g. chmod -R u+w {folder}), or copy the run to a folder you can write and {copy}."
         )
+
+
+def unwritable_message(folder: Path, error: OSError, steps: int) -> str:
+    """One line for a run stopped by a folder that cannot be written any more (made read-only while it trained).
+
+    :param folder: the run's folder
+    :param error: the write that failed
+    :param steps: the model's agent-steps when it stopped
+    """
+    what = f"{error.strerror or 'permission denied'}" + (f" writing {error.filename}" if error.filename else "")
+    checkpoint, _ = newest_loading_checkpoint(folder)
+    then = (
+        f"run the same command with --resume to continue from {checkpoint.name}"
+        if checkpoint is not None
+        else "start the run again (it has no checkpoint to resume from)"
+    )
+    return (
+        f"{what}: the run folder {folder} cannot be written any more; the run stopped at {steps:,} agent-steps. Make "
+        f"it writable (chmod -R u+w {folder}), then {then}."
+    )
+
+
+def no_space_message(folder: Path, error: OSError) -> str:
+    """One line for a run stopped by a full disk: what failed, the run's folder, the checkpoint to resume from.
+
+    :param folder: the run's folder
+    :param error: the write that failed
+    """
+    what = f"{error.strerror or 'no space left on the device'}" + (f" writing {error.filename}" if error.filename else "")
+    checkpoint, _ = newest_loading_checkpoint(folder)
+    if checkpoint is None:
+        return (
+            f"{what}: the run in {folder} stopped and has no checkpoint to resume from. Free some space and start it "
+            "again (--save-freq writes resumable checkpoints)."
+        )
+    return (
+        f"{what}: the run in {folder} stopped; its last good checkpoint is {checkpoint.name}. Free some space, then run "
+        "the same command with --resume to continue from it."
+    )

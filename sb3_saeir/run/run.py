@@ -50,7 +50,7 @@ from sb3_saeir.run.files import (
     SHORTER_RUN_MODEL,
     SPEC_FILE,
 )
-from sb3_saeir.run.folder import RunFolder
+from sb3_saeir.run.folder import RunFolder, no_space_message, unwritable_message
 from sb3_saeir.run.lock import RunFolderWatch
 from sb3_saeir.run.output import RunEvalCallback, RunFolderCheck, RunOutput
 from sb3_saeir.run.record import (
@@ -521,9 +521,9 @@ class Run:
             if change is not None:
                 message = self.moved_message(change)
             elif error.errno in NO_SPACE_ERRNOS:
-                message = self.no_space_message(error)
+                message = no_space_message(self.folder, error)
             elif error.errno in UNWRITABLE_ERRNOS:
-                message = self.unwritable_message(error)
+                message = unwritable_message(self.folder, error, model.num_timesteps)
             else:
                 raise
             self._close_quietly()
@@ -655,36 +655,6 @@ class Run:
         return (
             f"{stopped}; its newest checkpoint is {checkpoint}: move the folder back to {self.folder} and run the "
             f"same command (train and zoo train: with --resume, or --resume {now} where it is now)."
-        )
-
-    def unwritable_message(self, error: OSError) -> str:
-        """One line for a run stopped by a folder that cannot be written any more (made read-only while it trained)."""
-        assert self.experiment is not None and self.experiment.model is not None
-        what = f"{error.strerror or 'permission denied'}" + (f" writing {error.filename}" if error.filename else "")
-        checkpoint, _ = newest_loading_checkpoint(self.folder)
-        then = (
-            f"run the same command with --resume to continue from {checkpoint.name}"
-            if checkpoint is not None
-            else "start the run again (it has no checkpoint to resume from)"
-        )
-        return (
-            f"{what}: the run folder {self.folder} cannot be written any more; the run stopped at "
-            f"{self.experiment.model.num_timesteps:,} agent-steps. Make it writable (chmod -R u+w {self.folder}), then "
-            f"{then}."
-        )
-
-    def no_space_message(self, error: OSError) -> str:
-        """One line for a run stopped by a full disk: what failed, the run's folder, the checkpoint to resume from."""
-        what = f"{error.strerror or 'no space left on the device'}" + (f" writing {error.filename}" if error.filename else "")
-        checkpoint, _ = newest_loading_checkpoint(self.folder)
-        if checkpoint is None:
-            return (
-                f"{what}: the run in {self.folder} stopped and has no checkpoint to resume from. Free some space and "
-                "start it again (--save-freq writes resumable checkpoints)."
-            )
-        return (
-            f"{what}: the run in {self.folder} stopped; its last good checkpoint is {checkpoint.name}. Free some space, "
-            "then run the same command with --resume to continue from it."
         )
 
     def _close_quietly(self) -> None:

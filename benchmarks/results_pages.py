@@ -62,6 +62,26 @@ PAPER = {
     ("grf-counterattack-easy", "mappo"): "0.73 ± 0.17",
     ("grf-counterattack-easy", "saeir_ppo"): "76.12 ± 4.48",
 }
+# Its navigation episode rewards: one agent's reward summed over the 25-step episode (docs/tasks.md, "the authors' unit").
+PAPER_REWARD = {
+    ("cn-sparse-n3", "mappo"): "3.38 ± 0.06",
+    ("cn-sparse-n3", "saeir_ppo"): "3.46 ± 0.07",
+    ("cn-sparse-n4", "mappo"): "4.59 ± 0.21",
+    ("cn-sparse-n4", "saeir_ppo"): "4.79 ± 0.02",
+}
+# Task ids read against another task's rows of Table 1: the navigation reading without the collision penalty is the
+# paper's task on the reading that reaches its coverage (docs/tasks.md, "Which task id reproduces Table 1").
+PAPER_TASK = {"cn-sparse-no-penalty-n3": "cn-sparse-n3", "cn-sparse-no-penalty-n4": "cn-sparse-n4"}
+
+
+def paper_rows(table: dict[tuple[str, str], str]) -> dict[tuple[str, str], str]:
+    """The rows of :data:`PAPER_TASK`'s ids in a table of Table 1 keyed by (task, method): their paper task's rows."""
+    return {(task, algo): value for task, paper in PAPER_TASK.items() for (row, algo), value in table.items() if row == paper}
+
+
+PAPER_ENV_STEPS |= {task: PAPER_ENV_STEPS[paper] for task, paper in PAPER_TASK.items()}
+PAPER |= paper_rows(PAPER)
+PAPER_REWARD |= paper_rows(PAPER_REWARD)
 # The random policy's final coverage or success %: uniform random actions, 1,000 navigation episodes
 # (benchmarks/scripted_navigation.py, docs/tasks.md) and 500 football episodes (football-probe/random_baseline.md).
 RANDOM = {"mpe N=3": "1.5", "mpe N=4": "2.1", "mpe2 N=3": "1.3", "mpe2 N=4": "1.5", "3v1": "1.0", "counterattack": "0.0"}

@@ -28,6 +28,7 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
+from sb3_saeir.common.run_state import read_zip_data, saved_policy_class
 from sb3_saeir.mappo import MAPPO
 from sb3_saeir.saeir_ppo import SAEIR_PPO
 
@@ -413,6 +414,63 @@ def kwarg_text(value: Any) -> str:
     if isinstance(value, type) and value.__module__.startswith("torch.nn"):
         return f"nn.{value.__name__}"
     return repr(value)
+
+
+# ---------------------------------------------------------------------------------------------------- saved models
+def _policy_name(policy: Any) -> str:
+    return policy if isinstance(policy, str) else getattr(policy, "__name__", str(policy))
+
+
+def saved_model_kind(path: str | Path) -> tuple[str, str | None] | None:
+    """The policy class and ``intrinsic_reward`` of a saved model, read from the zip's ``data`` (no weights loaded);
+    ``None`` when they cannot be read (not an SB3 zip: the load reports it).
+
+    SB3's zip does not record the algorithm class; the policy class and the intrinsic reward tell the package's
+    methods apart (``sn_mappo`` has ``SNMAPPOPolicy``, ``mshg_only`` ``MSHGPolicy`` without a bonus, ...).
+    """
+    data = read_zip_data(path)
+    policy = saved_policy_class(data) if data is not None else None
+    if data is None or policy is None:  # any unreadable zip: SB3's load gives its own message
+        return None
+    return _policy_name(policy), data.get("intrinsic_reward")
+
+
+def method_kind(algo: str, hyperparams: dict[str, Any]) -> tuple[str, str | None]:
+    """The policy class and ``intrinsic_reward`` a method's config entry trains (see :func:`saved_model_kind`)."""
+    algo_class = ALGOS[algo]
+    policy = hyperparams.get("policy", "MlpPolicy")
+    policy_class = algo_class.policy_aliases.get(policy, policy) if isinstance(policy, str) else policy
+    default = inspect.signature(algo_class).parameters.get("intrinsic_reward")
+    intrinsic = hyperparams.get("intrinsic_reward", default.default if default is not None else None)
+    return _policy_name(policy_class), intrinsic
+
+
+def model_method_mismatch(path: str | Path, algo: str, task: str, hyperparams: dict[str, Any]) -> str:
+    """Why the model saved at ``path`` is not a model of method ``algo`` (its config entry ``hyperparams``), naming
+    the model's policy class and the methods it fits; ``""`` when it fits (or cannot be read).
+
+    :param path: the model zip
+    :param algo: the method of the command
+    :param task: the task (to look up the other methods' packaged configs)
+    :param hyperparams: ``algo``'s config entry
+    """
+    saved = saved_model_kind(path)
+    expected = method_kind(algo, hyperparams)
+    if saved is None or saved == expected:
+        return ""
+    fits = []
+    for other in sorted(ALGOS):
+        try:
+            if method_kind(other, load_hyperparams(other, task)) == saved:
+                fits.append(other)
+        except (KeyError, OSError, ValueError):
+            continue
+    policy, intrinsic = saved
+    hint = f"a model of {', '.join(fits)}; use --algo {fits[0]}" if fits else "a model of no packaged method"
+    return (
+        f"{path} is a model with {policy} and intrinsic_reward={intrinsic!r} ({hint}), not one of {algo} "
+        f"({expected[0]}, intrinsic_reward={expected[1]!r})."
+    )
 
 
 @dataclass(frozen=True)

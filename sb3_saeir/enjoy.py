@@ -22,10 +22,9 @@ from sb3_saeir.common.atomic import atomic_path
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.utils import set_num_threads
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
-from sb3_saeir.config import ALGOS, ConfigError, check_algo, load_hyperparams, load_yaml, parse_params
+from sb3_saeir.config import ALGOS, ConfigError, check_algo, load_hyperparams, load_yaml, model_method_mismatch, parse_params
 from sb3_saeir.envs import list_tasks, make_task
 from sb3_saeir.evaluation import evaluate_multiagent_policy
-from sb3_saeir.experiment import model_method_mismatch
 from sb3_saeir.run.files import CONFIG_FILE
 from sb3_saeir.run.folder import find_model
 

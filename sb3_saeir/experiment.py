@@ -3,12 +3,11 @@
 :class:`Experiment` is what ``python -m sb3_saeir.train``, the benchmark, ``python -m sb3_saeir.zoo train`` and the
 Optuna trials share, as rl-zoo3's ``ExperimentManager`` is for rl-zoo3: the training and evaluation envs, the model
 from the packaged (or given) config, its callbacks, ``learn`` and ``save``; a run in a folder is a
-:class:`~sb3_saeir.run.run.Run` of it. The saved-model checks live here too.
+:class:`~sb3_saeir.run.run.Run` of it.
 """
 
 from __future__ import annotations
 
-import inspect
 from pathlib import Path
 from typing import Any
 
@@ -18,8 +17,8 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
-from sb3_saeir.common.run_state import load_resume_state, read_zip_data, saved_policy_class
-from sb3_saeir.common.utils import MAX_SEED
+from sb3_saeir.common.run_state import load_resume_state
+from sb3_saeir.common.utils import MAX_SEED, check_number
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.config import (
     ALGOS,
@@ -85,8 +84,10 @@ class Experiment:
         self.hyperparams = dict(load_hyperparams(algo, task) if hyperparams is None else hyperparams)
         self.seed = seed
         games = n_games if n_games is not None else self.hyperparams.get("n_envs", DEFAULT_N_GAMES)
-        self.n_games = _whole("n_games", games, 1)
-        self.num_cpus = _whole("num_cpus", num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0), 0)
+        cpus = num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0)
+        check_number("Experiment", "n_games", games, ">= 1", lambda value: value >= 1, integer=True)
+        check_number("Experiment", "num_cpus", cpus, ">= 0", lambda value: value >= 0, integer=True)
+        self.n_games, self.num_cpus = int(games), int(cpus)
         self.model: BaseAlgorithm | None = None
         self.env: VecEnv | None = None
         self.config_callbacks: list[BaseCallback] = []
@@ -278,68 +279,3 @@ class Experiment:
 def config_budget(hyperparams: dict[str, Any]) -> int:
     """A config entry's training budget in agent-steps: its ``n_timesteps`` (default 1,000,000)."""
     return int(hyperparams.get("n_timesteps", 1_000_000))
-
-
-def _whole(name: str, value: Any, low: int) -> int:
-    """``value`` as an int ``>= low``; a fractional, boolean or string value is refused (``int()`` would truncate it)."""
-    whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
-    if isinstance(value, bool) or not whole or value < low:
-        raise ValueError(f"Experiment: {name} must be an integer >= {low}, got {value!r}.")
-    return int(value)
-
-
-# ---------------------------------------------------------------------------------------------------- saved models
-def _policy_name(policy: Any) -> str:
-    return policy if isinstance(policy, str) else getattr(policy, "__name__", str(policy))
-
-
-def saved_model_kind(path: str | Path) -> tuple[str, str | None] | None:
-    """The policy class and ``intrinsic_reward`` of a saved model, read from the zip's ``data`` (no weights loaded);
-    ``None`` when they cannot be read (not an SB3 zip: the load reports it).
-
-    SB3's zip does not record the algorithm class; the policy class and the intrinsic reward tell the package's
-    methods apart (``sn_mappo`` has ``SNMAPPOPolicy``, ``mshg_only`` ``MSHGPolicy`` without a bonus, ...).
-    """
-    data = read_zip_data(path)
-    policy = saved_policy_class(data) if data is not None else None
-    if data is None or policy is None:  # any unreadable zip: SB3's load gives its own message
-        return None
-    return _policy_name(policy), data.get("intrinsic_reward")
-
-
-def method_kind(algo: str, hyperparams: dict[str, Any]) -> tuple[str, str | None]:
-    """The policy class and ``intrinsic_reward`` a method's config entry trains (see :func:`saved_model_kind`)."""
-    algo_class = ALGOS[algo]
-    policy = hyperparams.get("policy", "MlpPolicy")
-    policy_class = algo_class.policy_aliases.get(policy, policy) if isinstance(policy, str) else policy
-    default = inspect.signature(algo_class).parameters.get("intrinsic_reward")
-    intrinsic = hyperparams.get("intrinsic_reward", default.default if default is not None else None)
-    return _policy_name(policy_class), intrinsic
-
-
-def model_method_mismatch(path: str | Path, algo: str, task: str, hyperparams: dict[str, Any]) -> str:
-    """Why the model saved at ``path`` is not a model of method ``algo`` (its config entry ``hyperparams``), naming
-    the model's policy class and the methods it fits; ``""`` when it fits (or cannot be read).
-
-    :param path: the model zip
-    :param algo: the method of the command
-    :param task: the task (to look up the other methods' packaged configs)
-    :param hyperparams: ``algo``'s config entry
-    """
-    saved = saved_model_kind(path)
-    expected = method_kind(algo, hyperparams)
-    if saved is None or saved == expected:
-        return ""
-    fits = []
-    for other in sorted(ALGOS):
-        try:
-            if method_kind(other, load_hyperparams(other, task)) == saved:
-                fits.append(other)
-        except (KeyError, OSError, ValueError):
-            continue
-    policy, intrinsic = saved
-    hint = f"a model of {', '.join(fits)}; use --algo {fits[0]}" if fits else "a model of no packaged method"
-    return (
-        f"{path} is a model with {policy} and intrinsic_reward={intrinsic!r} ({hint}), not one of {algo} "
-        f"({expected[0]}, intrinsic_reward={expected[1]!r})."
-    )

@@ -14,6 +14,7 @@ import argparse
 import sys
 import time
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -45,11 +46,14 @@ from sb3_saeir.common.stop_signals import (
     stop_signals_as_ctrl_c,
 )
 from sb3_saeir.common.utils import set_num_threads
-from sb3_saeir.config import ALGOS, ConfigError, parse_params
+from sb3_saeir.config import ALGOS, ConfigError, model_method_mismatch, parse_params
 from sb3_saeir.envs import list_tasks
-from sb3_saeir.experiment import Experiment, config_budget, model_method_mismatch
-from sb3_saeir.run import Run, RunFolder, RunFolderInUseError, RunOutput, RunSpec, RunStoppedError
-from sb3_saeir.run.record import config_record
+from sb3_saeir.experiment import Experiment, config_budget
+from sb3_saeir.run.folder import RunFolder
+from sb3_saeir.run.lock import RunFolderInUseError
+from sb3_saeir.run.output import RunOutput
+from sb3_saeir.run.record import RunSpec, config_record
+from sb3_saeir.run.run import Run, RunStoppedError
 
 __all__ = [
     "INTERRUPTED_EXIT_STATUS",
@@ -115,10 +119,12 @@ def run_spec(
     :param n_games: its games
     :param config: its resolved hyperparameters (the model's, after building)
     """
-    options = compared_options(vars(args))
+    command = vars(args)
+    options = compared_options(command)
     return RunSpec(
-        args.algo, args.task, seed, n_timesteps, n_games, args.eval_freq, args.eval_episodes, params, config, options
-    )
+        args.algo, args.task, seed, n_timesteps, n_games, args.eval_freq, args.eval_episodes, params, config, options,
+        {**command, "seed": seed},
+    )  # fmt: skip
 
 
 def legacy_train_record(stored_args: dict[str, Any], stored_config: dict[str, Any]) -> dict[str, Any]:
@@ -158,14 +164,23 @@ def train(args: argparse.Namespace) -> Path:
         if mismatch:
             raise ConfigError(f"--trained-agent {mismatch}")
     set_num_threads(args.num_threads)
+    with run_folder(args) as folder:  # given back at the end; a new run's folder removed when the command is refused
+        if folder.record is None:
+            seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
+        else:
+            check_not_a_benchmark_run(folder.path, folder.record)
+            seed = resumed_seed(args.seed, folder.record, folder.path)
+        return _execute(args, hyperparams, folder, seed)
+
+
+def run_folder(args: argparse.Namespace) -> RunFolder:
+    """The command's run folder, held: a new run's claimed, or the one ``--resume`` names found.
+
+    :param args: the command
+    """
     if args.resume is None:
-        seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
-        with RunFolder.claim(args.log_folder, args.algo, args.task) as folder:
-            return _execute(args, hyperparams, folder, seed)
-    with RunFolder.find(args.log_folder, args.algo, args.task, args.resume, legacy_train_record) as folder:
-        assert folder.record is not None
-        check_not_a_benchmark_run(folder.path, folder.record)
-        return _execute(args, hyperparams, folder, resumed_seed(args.seed, folder.record, folder.path))
+        return RunFolder.claim(args.log_folder, args.algo, args.task)
+    return RunFolder.find(args.log_folder, args.algo, args.task, args.resume, legacy_train_record)
 
 
 def check_not_a_benchmark_run(folder: Path, stored: dict[str, Any]) -> None:
@@ -205,7 +220,6 @@ def _execute(args: argparse.Namespace, hyperparams: dict[str, Any], folder: RunF
     run = Run(
         run_spec(args, params, seed, n_timesteps, experiment.n_games, {}),
         save_freq=args.save_freq if args.save_freq > 0 else sys.maxsize,  # never but on Ctrl-C
-        command={**vars(args), "seed": seed},
         continue_model=bool(args.trained_agent),
     )
 
@@ -214,14 +228,17 @@ def _execute(args: argparse.Namespace, hyperparams: dict[str, Any], folder: RunF
         run.spec = replace(run.spec, config=config_record(experiment.resolved_hyperparams))  # what spec.json records
 
     output = RunOutput(
-        command_line=True, verbose=args.verbose, progress_bar=args.progress, callbacks=[BudgetEstimate(n_timesteps)]
+        command_line=True,
+        verbose=args.verbose,
+        progress_bar=args.progress,
+        callbacks=[BudgetEstimate(n_timesteps)],
+        announce=partial(announce_run, budget_from_config=args.n_timesteps is None),
     )
     model_path = run.execute(
         folder,
         experiment,
         build,
         output=output,
-        announce=lambda run: announce_run(args, experiment, run, n_timesteps, seed),
     )
     assert run.clock is not None and run.checkpoints is not None
     print(f"Saved {model_path} after {time.time() - run.clock.start:.0f} s")
@@ -232,20 +249,25 @@ def _execute(args: argparse.Namespace, hyperparams: dict[str, Any], folder: RunF
     return folder.path
 
 
-def announce_run(args: argparse.Namespace, experiment: Experiment, run: Run, n_timesteps: int, seed: int) -> None:
-    """Say what is trained, with which seed, where, and (resuming) from which checkpoint."""
+def announce_run(run: Run, experiment: Experiment, budget_from_config: bool = False) -> None:
+    """Say what is trained, with which seed, where, and (resuming) from which checkpoint.
+
+    :param run: the run, set up
+    :param experiment: its experiment, the model built
+    :param budget_from_config: the budget is the config's (no ``-n``)
+    """
     assert experiment.env is not None
-    n_agents = experiment.env.num_envs // experiment.n_games
+    spec, n_agents = run.spec, experiment.env.num_envs // experiment.n_games
     print(
-        f"Training {args.algo} on {args.task}: {experiment.n_games} games x {n_agents} agents, {n_timesteps:,} "
-        f"agent-steps, seed {seed}"
+        f"Training {spec.algo} on {spec.task}: {experiment.n_games} games x {n_agents} agents, {spec.n_timesteps:,} "
+        f"agent-steps, seed {spec.seed}"
     )
     if run.extended_from is not None:
-        print(f"Training longer: budget {run.extended_from:,} -> {n_timesteps:,} agent-steps")
+        print(f"Training longer: budget {run.extended_from:,} -> {spec.n_timesteps:,} agent-steps")
     if run.resume is not None:
         remaining = run.target_timesteps - run.start_timesteps
         print(f"Resuming {run.folder} from {run.resume.checkpoint.name}: {remaining:,} agent-steps to go")
-    elif args.n_timesteps is None:
+    elif budget_from_config:
         print("(n_timesteps from the config; -n sets a shorter budget. The time it takes is printed after the first rollout.)")
     note = budget_note(experiment, run)
     if note:

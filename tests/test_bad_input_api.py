@@ -917,3 +917,21 @@ def test_experiment_of_an_unknown_task_is_refused_when_made():
     with pytest.raises(KeyError) as error:
         Experiment("mappo", "nope-task")  # accepted; the KeyError came at build()
     assert "Unknown task 'nope-task'. Registered tasks:" in str(error.value)
+
+
+@pytest.mark.parametrize(
+    "games, cpus, message",
+    [
+        (2.5, None, "Experiment: n_games must be an integer >= 1, got 2.5."),
+        (0, None, "Experiment: n_games must be an integer >= 1, got 0."),
+        (True, None, "Experiment: n_games must be an integer >= 1, got True."),
+        (2, -1, "Experiment: num_cpus must be an integer >= 0, got -1."),
+        (2, "2", "Experiment: num_cpus must be an integer >= 0, got '2'."),
+    ],
+)
+def test_experiment_refuses_game_and_worker_counts_that_are_not_counts(games, cpus, message):
+    from sb3_saeir.experiment import Experiment
+
+    with pytest.raises(ValueError) as error:
+        Experiment("mappo", "cn-sparse-n3", n_games=games, num_cpus=cpus)
+    assert str(error.value) == message

@@ -63,7 +63,7 @@ BELOW_THE_RUN_WING = (
     "sb3_saeir.experiment",
     "sb3_saeir.evaluation",
 )
-RUN_LOCK = "sb3_saeir.run.lock"
+RUN_LOCK_CLASS = "RunFolderLock"
 
 Graph = dict[str, set[str]]
 
@@ -282,10 +282,34 @@ def test_no_layer_below_the_run_wing_imports_it() -> None:
     assert not {module: targets for module, targets in below.items() if targets}
 
 
+def names_used(source: str) -> set[str]:
+    """Every name a source file imports or reads (``RunFolderLock``, ``lock.RunFolderLock``).
+
+    :param source: the file's text
+    """
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.Name):
+            names.add(node.id)
+        elif isinstance(node, ast.Attribute):
+            names.add(node.attr)
+    return names
+
+
+def test_names_used_sees_imports_and_attributes() -> None:
+    assert {"RunFolderLock", "acquire"} <= names_used("from x import RunFolderLock\nRunFolderLock(p).acquire()")
+    assert "RunFolderLock" in names_used("import sb3_saeir.run.lock as lock\nlock.RunFolderLock(p)")
+
+
 def test_only_the_run_wing_takes_a_run_folders_lock() -> None:
-    """Callers hand a :class:`~sb3_saeir.run.folder.RunFolder` over; none locks a folder itself."""
+    """Callers hand a :class:`~sb3_saeir.run.folder.RunFolder` over; none locks a folder itself (catching
+    ``RunFolderInUseError`` is no lock)."""
     takers = sorted(
-        module for module, targets in import_graph().items() if RUN_LOCK in targets and not is_in_package(module, RUN_WING)
+        module
+        for module, path in package_sources().items()
+        if not is_in_package(module, RUN_WING) and RUN_LOCK_CLASS in names_used(path.read_text(encoding="utf-8"))
     )
     assert takers == []
 

@@ -32,14 +32,15 @@ from sb3_saeir.config import (
     parse_params,
 )
 from sb3_saeir.run.files import DONE_FILE, PROGRESS_FILE
-from sb3_saeir.run.folder import (
-    check_run_folder_writable,
+from sb3_saeir.run.folder import check_run_folder_writable, folders_in_use
+from sb3_saeir.run.record import (
+    RunSpec,
     ensure_spec_file,
-    folders_in_use,
     is_finished,
+    read_spec_file,
+    spec_record,
     stored_spec_differences,
 )
-from sb3_saeir.run.record import RunSpec, read_spec_file, spec_record
 
 # The line Ctrl-C ends with (exit status 130).
 INTERRUPTED = "sb3_saeir.benchmark: interrupted: re-run the same command to resume"
@@ -70,7 +71,7 @@ def refusal(out: Path, mismatches: list[tuple[RunSpec, list[str]]], report_only:
 
 def unwritable_runs(out: Path, specs: list[RunSpec]) -> list[str]:
     """Why each run folder this command would go on writing cannot be written (a run that is not finished, or whose
-    budget the command raises: :func:`~sb3_saeir.run.record.check_run_folder_writable`), before anything is written.
+    budget the command raises: :func:`~sb3_saeir.run.folder.check_run_folder_writable`), before anything is written.
 
     :param out: the benchmark folder
     :param specs: the command's runs

@@ -16,10 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from sb3_saeir.benchmark.runs import run_folder
-from sb3_saeir.run import Run, RunFolder, RunSpec
 from sb3_saeir.run.files import DONE_FILE, EVALUATIONS_FILE
-from sb3_saeir.run.folder import is_finished
-from sb3_saeir.run.record import read_rows, read_spec_file, spec_record, write_done_file, write_rows
+from sb3_saeir.run.folder import RunFolder
+from sb3_saeir.run.record import RunSpec, is_finished, read_rows, read_spec_file, write_done_file, write_rows
+from sb3_saeir.run.run import Run
 
 # The benchmark checkpoints at every rollout start and keeps the newest two (one to fall back to).
 KEEP_CHECKPOINTS = 2
@@ -46,30 +46,14 @@ def execute_run(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, A
     from sb3_saeir.experiment import Experiment
 
     th.set_num_threads(num_threads)
-    with RunFolder.take(Path(folder), spec_record(spec), spec.name, RERUN_COPY) as taken:
-        if taken.finished(spec.n_timesteps):
+    with RunFolder.take(Path(folder), spec, RERUN_COPY) as taken:
+        if taken.finished:
             return {"spec": asdict(spec), "status": "skipped", "rows": read_rows(taken.path / EVALUATIONS_FILE)}
-        run = Run(spec, save_freq=0, keep_checkpoints=KEEP_CHECKPOINTS, command=benchmark_command(spec), name=spec.name)
+        run = Run(spec, save_freq=0, keep_checkpoints=KEEP_CHECKPOINTS, name=spec.name)
         experiment = Experiment(spec.algo, spec.task, spec.resolved_config(), seed=spec.seed, n_games=spec.n_games)
         run.execute(taken, experiment)
     assert run.evaluator is not None and run.clock is not None
     return {"spec": asdict(spec), "status": "done", "rows": run.evaluator.rows, "wall_s": run.clock.total_s, "done": run.done}
-
-
-def benchmark_command(spec: RunSpec) -> dict[str, Any]:
-    """A benchmark run as ``<task>/args.yml`` records it: the ``python -m sb3_saeir.train`` arguments that make the
-    same run."""
-    params = [f"{key}:{value!r}" for key, value in sorted(spec.params.items())]
-    return {
-        "algo": spec.algo,
-        "task": spec.task,
-        "seed": spec.seed,
-        "n_timesteps": spec.n_timesteps,
-        "n_games": spec.n_games,
-        "eval_freq": spec.eval_freq,
-        "eval_episodes": spec.eval_episodes,
-        "params": params or None,
-    }
 
 
 def _safe_execute(spec: RunSpec, folder: str, num_threads: int = 1) -> dict[str, Any]:

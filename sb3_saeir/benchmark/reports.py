@@ -15,8 +15,7 @@ from sb3_saeir.benchmark.runs import run_folder
 from sb3_saeir.benchmark.statistics import final_rows, main_metric, pairwise_markdown, rliable_markdown, table_columns
 from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.run.files import DONE_FILE, EVALUATIONS_FILE, PROGRESS_FILE, SPEC_FILE
-from sb3_saeir.run.folder import stored_spec_differences
-from sb3_saeir.run.record import RunSpec, read_rows, spec_record, write_rows
+from sb3_saeir.run.record import RunSpec, read_rows, spec_record, stored_spec_differences, write_rows
 
 
 def collect(out: Path, specs: list[RunSpec]) -> list[dict[str, Any]]:

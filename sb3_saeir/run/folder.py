@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Callable
 from contextlib import suppress
 from pathlib import Path
 from types import TracebackType
@@ -18,9 +17,7 @@ from typing import Any
 from sb3_saeir.common.utils import unwritable_folder
 from sb3_saeir.config import ConfigError
 from sb3_saeir.run.files import (
-    ARGS_FILE,
     BEST_MODEL_FILE,
-    CONFIG_FILE,
     DONE_FILE,
     EVALUATIONS_FILE,
     FINAL_MODEL,
@@ -33,16 +30,12 @@ from sb3_saeir.run.files import (
 )
 from sb3_saeir.run.lock import RunFolderInUseError, RunFolderLock, RunFolderWatch
 from sb3_saeir.run.record import (
-    extended_budget,
+    LegacyRecord,
+    RunSpec,
     newest_loading_checkpoint,
-    read_run_file,
-    read_spec_file,
-    spec_differences,
-    write_spec_file,
+    settle_spec_file,
+    stored_record,
 )
-
-# How a command makes a settings record of a run of an older version (its <task>/args.yml and <task>/config.yml).
-LegacyRecord = Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
 
 
 class RunFolder:
@@ -54,7 +47,7 @@ class RunFolder:
       removes it again, with the parents made for it;
     - :meth:`find`: the run that ``--resume`` names (the latest, run ``N``, or a folder's path), its record read;
     - :meth:`take`: a given folder (the benchmark's ``<out>/runs/<algo>/<task>_s<seed>``), made when missing, its
-      record written when it has none and compared when it has one.
+      record written when it has none and compared when it has one; a finished run is told (:attr:`finished`).
 
     :param path: the folder
     :param lock: its lock, held
@@ -80,6 +73,7 @@ class RunFolder:
         self.resumed = resumed
         self.by_path = by_path
         self.made = made or {}
+        self.finished = False  # the run is finished for the command's budget (:meth:`take`)
 
     # ------------------------------------------------------------------------------------------------ ways in
     @classmethod
@@ -125,8 +119,9 @@ class RunFolder:
     def find(
         cls, log_folder: str | Path, algo: str, task: str, resume: int | Path, legacy_record: LegacyRecord | None = None
     ) -> RunFolder:
-        """Lock the run folder ``--resume`` names (:func:`find_run_folder`), check that the run can go on there
-        (:func:`check_run_folder_writable`) and read its settings record (:func:`stored_record`).
+        """Lock the run folder ``--resume`` names (:func:`find_run_folder`), read its settings record
+        (:func:`~sb3_saeir.run.record.stored_record`) and check that the run can go on there
+        (:func:`check_run_folder_writable`).
 
         :param log_folder: the log folder (``-f``)
         :param algo: the method of the command
@@ -138,46 +133,36 @@ class RunFolder:
         """
         path = find_run_folder(log_folder, algo, task, resume)
         found = cls(path, RunFolderLock(path).acquire(), resumed=True, by_path=isinstance(resume, Path))
-        try:  # before anything is read for the run or written
-            check_run_folder_writable(path)
+        try:  # before anything is written
             found.record = stored_record(path, algo, task, legacy_record)
+            check_run_folder_writable(path)
         except BaseException:
             found.close()
             raise
         return found
 
     @classmethod
-    def take(cls, path: Path, planned: dict[str, Any], name: str = "", copy: str = "--resume the copy") -> RunFolder:
-        """Lock a given run folder (made when missing), write its settings record ``planned`` when it has none
-        (:func:`ensure_spec_file`), and check that a run that goes on can write it (not for a finished run, which
-        :meth:`finished` tells: it may stay read-only).
+    def take(cls, path: Path, spec: RunSpec, copy: str = "--resume the copy") -> RunFolder:
+        """Lock a given run folder (made when missing), write its settings record when it has none and refuse one
+        of other settings (:func:`~sb3_saeir.run.record.settle_spec_file`), tell whether the run is :attr:`finished`
+        for ``spec``'s budget, and, if not, check that the run can write the folder (a finished run's folder may stay
+        read-only).
 
         :param path: the run's folder
-        :param planned: the settings record of the run (:func:`~sb3_saeir.run.record.spec_record`)
-        :param name: the run's name, the start of a refusal
+        :param spec: the run's settings
         :param copy: how the command continues a copy of the run that cannot be written, for the fix
         :raises ValueError: when the folder holds a run made with other settings
         :raises ~sb3_saeir.config.ConfigError: when a run that goes on cannot write the folder
         """
         taken = cls(path, RunFolderLock(path).acquire())
         try:
-            ensure_spec_file(path, planned)
-            taken.record = read_spec_file(path)
-            if not taken.finished(int(planned["n_timesteps"])):
-                check_run_folder_writable(path, name or str(path), copy)
+            taken.record, taken.finished = settle_spec_file(path, spec)
+            if not taken.finished:
+                check_run_folder_writable(path, spec.name, copy)
         except BaseException:
             taken.close()
             raise
         return taken
-
-    # ------------------------------------------------------------------------------------------------ the run in it
-    def finished(self, n_timesteps: int) -> bool:
-        """Whether the run is finished for a budget of ``n_timesteps`` agent-steps: it has its ``done.json`` and the
-        budget does not raise its record's (a larger budget trains it longer).
-
-        :param n_timesteps: the command's budget
-        """
-        return is_finished(self.path, self.record, n_timesteps)
 
     def close(self, refused: bool = False) -> None:
         """Give the lock back. A claimed folder of a command ``refused`` before its run recorded itself (no
@@ -202,17 +187,6 @@ class RunFolder:
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None, traceback: TracebackType | None) -> None:
         self.close(refused=error is not None)
-
-
-def is_finished(path: Path, record: dict[str, Any] | None, n_timesteps: int) -> bool:
-    """Whether the run in ``path`` is finished for a budget of ``n_timesteps`` agent-steps: it has its ``done.json``
-    and the budget does not raise its settings record's (``record``; a larger budget trains it longer).
-
-    :param path: the run's folder
-    :param record: its settings record (``None``: none, or unread)
-    :param n_timesteps: the command's budget
-    """
-    return (path / DONE_FILE).is_file() and (record is None or extended_budget(record, n_timesteps) is None)
 
 
 def folders_in_use(folders: list[Path]) -> list[str]:
@@ -299,69 +273,6 @@ def find_model(log_folder: str | Path, algo: str, task: str, exp_id: int = 0, lo
     if not with_model:
         raise FileNotFoundError(f"no run of {algo} on {task} in {Path(log_folder) / algo} has a {name}.")
     return with_model[-1]
-
-
-# ---------------------------------------------------------------------------------------------------- the record
-def stored_spec_differences(folder: Path, record: dict[str, Any]) -> list[str]:
-    """Why the run in ``folder`` cannot be continued or reported with the settings ``record`` (empty: it can, or the
-    folder holds nothing yet).
-
-    :param folder: the run's folder
-    :param record: :func:`~sb3_saeir.run.record.spec_record` of the planned run
-    """
-    try:
-        stored = read_spec_file(folder)
-    except ConfigError as error:  # not JSON, not text, or not an object of settings: what it says, then what follows
-        return [f"{str(error).split(';')[0]}: its settings are unknown"]
-    if stored is not None:
-        return spec_differences(stored, record)
-    if folder.is_dir() and any(folder.iterdir()):
-        return [f"no {SPEC_FILE} (made by an older version): its settings are unknown"]
-    return []
-
-
-def ensure_spec_file(folder: Path, record: dict[str, Any]) -> None:
-    """Write the run's ``spec.json`` unless it is there; refuse a folder made with other settings.
-
-    :param folder: the run's folder
-    :param record: :func:`~sb3_saeir.run.record.spec_record` of the run
-    :raises ValueError: naming what differs
-    """
-    differences = stored_spec_differences(folder, record)
-    if differences:
-        raise ValueError(f"{folder} holds a run made with other settings: {'; '.join(differences)}.")
-    if not (folder / SPEC_FILE).is_file():
-        write_spec_file(folder, record)
-
-
-def stored_record(folder: Path, algo: str, task: str, legacy_record: LegacyRecord | None = None) -> dict[str, Any]:
-    """The settings record of the run in ``folder``: its ``spec.json``, or for a run of an older version its
-    ``<task>/args.yml`` and ``<task>/config.yml`` made into one by ``legacy_record`` (``None``: such a run is refused).
-
-    :param folder: the run's folder
-    :param algo: the method of the command
-    :param task: the task of the command (``<task>/`` holds the older files)
-    :param legacy_record: the record of an older run from its ``args.yml`` and ``config.yml``
-    :raises ~sb3_saeir.config.ConfigError: when the folder holds no run of this command, or its record is damaged
-    """
-    try:
-        record = read_spec_file(folder)
-    except ConfigError as error:
-        raise ConfigError(f"--resume: {error}") from None
-    if record is not None:
-        if (record.get("algo"), record.get("task")) != (algo, task):
-            raise ConfigError(
-                f"--resume: {folder} holds a run of {record.get('algo')} on {record.get('task')}: it is not a run of this "
-                "command."
-            )
-        return record
-    args_path = folder / task / ARGS_FILE
-    if legacy_record is None:
-        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE}: it is not a run of this command.")
-    if not args_path.is_file():
-        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE} nor {task}/{ARGS_FILE}: it is not a run of this command.")
-    stored_args = read_run_file(args_path)
-    return legacy_record(stored_args, read_run_file(folder / task / CONFIG_FILE))
 
 
 # ---------------------------------------------------------------------------------------------------- writable

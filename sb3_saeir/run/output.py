@@ -124,12 +124,15 @@ class RunOutput:
     :param verbose: the verbosity (>= 1: each evaluation printed too)
     :param progress_bar: SB3's progress bar
     :param callbacks: more callbacks of the caller (an ETA line, ...)
+    :param announce: what the command says about the run once it is set up and checked, before anything is written,
+        ``announce(run, experiment)`` (``None``: nothing)
     """
 
     command_line: bool = False
     verbose: int = 0
     progress_bar: bool = False
     callbacks: list[BaseCallback] = field(default_factory=list)
+    announce: Callable[[Any, Any], None] | None = None
 
     def writers(self, model: Any, continued: bool) -> list[KVWriter]:
         """The logger's writers besides ``progress.csv`` (none but for a command line's run).

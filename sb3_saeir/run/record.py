@@ -67,6 +67,8 @@ class RunSpec:
     :param config: the config entry it trains with (overrides applied); ``None``: the packaged entry of ``algo`` and
         ``task`` with ``params`` applied, read when needed (:meth:`resolved_config`)
     :param options: the command's other settings that a resume must repeat, by their flags (``--save-freq``, ...)
+    :param command: the command as ``<task>/args.yml`` records it (rl-zoo3's file; not a setting: ``spec.json`` leaves
+        it out); empty: the ``python -m sb3_saeir.train`` arguments that make the same run (:func:`train_command`)
     """
 
     algo: str
@@ -79,6 +81,7 @@ class RunSpec:
     params: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
     config: dict[str, Any] | None = field(default=None, hash=False, compare=False)
     options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
+    command: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
     @property
     def name(self) -> str:
@@ -117,9 +120,28 @@ def spec_record(spec: RunSpec) -> dict[str, Any]:
 
     config = spec.resolved_config()
     record = {**asdict(spec), "config": config, "game_kwargs": game_kwargs(spec.task, config), "version": __version__}
+    del record["command"]
     if not spec.options:
         del record["options"]
     return _jsonable(record)
+
+
+def train_command(spec: RunSpec) -> dict[str, Any]:
+    """A run as ``<task>/args.yml`` records it: the command it was given (:attr:`RunSpec.command`), else the
+    ``python -m sb3_saeir.train`` arguments that make the same run (a benchmark run's)."""
+    if spec.command:
+        return dict(spec.command)
+    params = [f"{key}:{value!r}" for key, value in sorted(spec.params.items())]
+    return {
+        "algo": spec.algo,
+        "task": spec.task,
+        "seed": spec.seed,
+        "n_timesteps": spec.n_timesteps,
+        "n_games": spec.n_games,
+        "eval_freq": spec.eval_freq,
+        "eval_episodes": spec.eval_episodes,
+        "params": params or None,
+    }
 
 
 def _show(value: Any) -> str:
@@ -296,6 +318,70 @@ def write_spec_file(folder: Path, record: dict[str, Any]) -> None:
 
 
 # ---------------------------------------------------------------------------------------------------- done.json
+def stored_spec_differences(folder: Path, record: dict[str, Any]) -> list[str]:
+    """Why the run in ``folder`` cannot be continued or reported with the settings ``record`` (empty: it can, or the
+    folder holds nothing yet).
+
+    :param folder: the run's folder
+    :param record: :func:`~sb3_saeir.run.record.spec_record` of the planned run
+    """
+    try:
+        stored = read_spec_file(folder)
+    except ConfigError as error:  # not JSON, not text, or not an object of settings: what it says, then what follows
+        return [f"{str(error).split(';')[0]}: its settings are unknown"]
+    if stored is not None:
+        return spec_differences(stored, record)
+    if folder.is_dir() and any(folder.iterdir()):
+        return [f"no {SPEC_FILE} (made by an older version): its settings are unknown"]
+    return []
+
+
+def ensure_spec_file(folder: Path, record: dict[str, Any]) -> None:
+    """Write the run's ``spec.json`` unless it is there; refuse a folder made with other settings.
+
+    :param folder: the run's folder
+    :param record: :func:`~sb3_saeir.run.record.spec_record` of the run
+    :raises ValueError: naming what differs
+    """
+    differences = stored_spec_differences(folder, record)
+    if differences:
+        raise ValueError(f"{folder} holds a run made with other settings: {'; '.join(differences)}.")
+    if not (folder / SPEC_FILE).is_file():
+        write_spec_file(folder, record)
+
+
+def settle_spec_file(folder: Path, spec: RunSpec) -> tuple[dict[str, Any], bool]:
+    """A given run folder's settings record for the run ``spec``: the folder's ``spec.json`` compared with it (a run
+    of other settings refused), or, in a folder without one, ``spec``'s record written; and whether the run is
+    finished for ``spec``'s budget (:func:`is_finished`).
+
+    :param folder: the run's folder, locked
+    :param spec: the run's settings
+    :return: the record, and whether the run is finished
+    :raises ValueError: naming what differs
+    """
+    planned = spec_record(spec)
+    differences = stored_spec_differences(folder, planned)
+    if differences:
+        raise ValueError(f"{folder} holds a run made with other settings: {'; '.join(differences)}.")
+    stored = read_spec_file(folder)
+    finished = is_finished(folder, stored, spec.n_timesteps)
+    if stored is None:
+        write_spec_file(folder, planned)
+    return stored or planned, finished
+
+
+def is_finished(path: Path, record: dict[str, Any] | None, n_timesteps: int) -> bool:
+    """Whether the run in ``path`` is finished for a budget of ``n_timesteps`` agent-steps: it has its ``done.json``
+    and the budget does not raise its settings record's (``record``; a larger budget trains it longer).
+
+    :param path: the run's folder
+    :param record: its settings record (``None``: none, or unread)
+    :param n_timesteps: the command's budget
+    """
+    return (path / DONE_FILE).is_file() and (record is None or extended_budget(record, n_timesteps) is None)
+
+
 def done_record(wall_s: float, segments: int, timesteps: int, model_start: int = 0) -> dict[str, Any]:
     """What a finished run's ``done.json`` holds: the total wall time over its segments (rounded to 0.1 s), the
     number of segments (processes that worked on it) and the agent-steps it trained (counted against the budget of
@@ -555,6 +641,40 @@ def read_run_file(path: Path) -> dict[str, Any]:
             "without --resume."
         )
     return content
+
+
+# How a command makes a settings record of a run of an older version (its <task>/args.yml and <task>/config.yml).
+LegacyRecord = Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]]
+
+
+def stored_record(folder: Path, algo: str, task: str, legacy_record: LegacyRecord | None = None) -> dict[str, Any]:
+    """The settings record of the run in ``folder``: its ``spec.json``, or for a run of an older version its
+    ``<task>/args.yml`` and ``<task>/config.yml`` made into one by ``legacy_record`` (``None``: such a run is refused).
+
+    :param folder: the run's folder
+    :param algo: the method of the command
+    :param task: the task of the command (``<task>/`` holds the older files)
+    :param legacy_record: the record of an older run from its ``args.yml`` and ``config.yml``
+    :raises ~sb3_saeir.config.ConfigError: when the folder holds no run of this command, or its record is damaged
+    """
+    try:
+        record = read_spec_file(folder)
+    except ConfigError as error:
+        raise ConfigError(f"--resume: {error}") from None
+    if record is not None:
+        if (record.get("algo"), record.get("task")) != (algo, task):
+            raise ConfigError(
+                f"--resume: {folder} holds a run of {record.get('algo')} on {record.get('task')}: it is not a run of this "
+                "command."
+            )
+        return record
+    args_path = folder / task / ARGS_FILE
+    if legacy_record is None:
+        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE}: it is not a run of this command.")
+    if not args_path.is_file():
+        raise ConfigError(f"--resume: {folder} has no {SPEC_FILE} nor {task}/{ARGS_FILE}: it is not a run of this command.")
+    stored_args = read_run_file(args_path)
+    return legacy_record(stored_args, read_run_file(folder / task / CONFIG_FILE))
 
 
 def save_run_config(params_path: Path, config: dict[str, Any], command: dict[str, Any]) -> None:

@@ -69,6 +69,7 @@ from sb3_saeir.run.record import (
     spec_differences,
     spec_record,
     split_rows,
+    train_command,
     warn_other_version,
     write_done_file,
     write_spec_file,
@@ -95,7 +96,6 @@ class Run:
     :param spec: the run's settings
     :param save_freq: agent-steps between checkpoints (0: at every rollout start)
     :param keep_checkpoints: checkpoints kept (the newest; ``None``: all, as SB3's ``CheckpointCallback``)
-    :param command: the command as ``<task>/args.yml`` records it (rl-zoo3's file)
     :param continue_model: the model was loaded to be trained on (``-i``): its agent-step count goes on
     :param name: the run's name in what it says (the benchmark's runs, side by side; ``""``: a command's one run)
     """
@@ -105,14 +105,12 @@ class Run:
         spec: RunSpec,
         save_freq: int = 0,
         keep_checkpoints: int | None = None,
-        command: dict[str, Any] | None = None,
         continue_model: bool = False,
         name: str = "",
     ) -> None:
         self.spec = spec
         self.save_freq = save_freq
         self.keep_checkpoints = keep_checkpoints
-        self.command = dict(command or {})
         self.continue_model = continue_model
         self.name = name
         self.start_timesteps = 0  # the model's agent-steps when this segment starts (from :meth:`execute`'s set-up)
@@ -146,7 +144,6 @@ class Run:
         experiment: Experiment,
         build: Callable[[Experiment, VecEnv], object] | None = None,
         output: RunOutput | None = None,
-        announce: Callable[[Run], None] | None = None,
     ) -> Path:
         """The whole run in ``folder``, which its caller holds: find where it continues (:meth:`check_resumable` for
         a run that ``--resume`` continues; else :meth:`open`, after :meth:`check_budget` for a folder with a record),
@@ -159,9 +156,8 @@ class Run:
         :param experiment: the run's experiment (its model is built here, unless it has one: a model rl-zoo3 built)
         :param build: builds (or loads) the model on the run's env, ``build(experiment, env)``; a bad setting raises.
             Default: :meth:`~sb3_saeir.experiment.Experiment.build`, unless the experiment has a model
-        :param output: how the run shows itself (default: quietly)
-        :param announce: called once the run is set up and checked, before anything is written (what a command says
-            about the run)
+        :param output: how the run shows itself (default: quietly; its ``announce`` is called once the run is set up
+            and checked, before anything is written)
         :return: the final model's path
         :raises ~sb3_saeir.config.ConfigError: for a run that cannot be continued, a model that cannot be built, or
             other settings than the record's
@@ -173,8 +169,8 @@ class Run:
         try:
             with self._stop_signals():
                 try:
-                    if announce is not None:
-                        announce(self)
+                    if self.output.announce is not None:
+                        self.output.announce(self, experiment)
                     self.write_spec()
                     self.start(experiment, self.output)
                     return self.train()
@@ -329,7 +325,7 @@ class Run:
         params_path = self.folder / self.spec.task
         if not (params_path / CONFIG_FILE).is_file():
             params_path.mkdir(exist_ok=True)
-            save_run_config(params_path, self.spec.resolved_config(), self.command)
+            save_run_config(params_path, self.spec.resolved_config(), train_command(self.spec))
 
     def _record_extension(self, stored: dict[str, Any]) -> None:
         final = self.final_model

@@ -34,7 +34,9 @@ from sb3_saeir.common.stop_signals import (
 )
 from sb3_saeir.config import ALGOS, ConfigError, check_n_envs, config_path, load_yaml, parse_params
 from sb3_saeir.evaluation import summarise_episodes
-from sb3_saeir.run import RunFolder, RunFolderInUseError, RunStoppedError
+from sb3_saeir.run.folder import RunFolder
+from sb3_saeir.run.lock import RunFolderInUseError
+from sb3_saeir.run.run import RunStoppedError
 from sb3_saeir.zoo.registration import (
     WRAPPER_NAME,
     EnjoySession,

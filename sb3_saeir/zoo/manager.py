@@ -18,8 +18,10 @@ from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.config import ConfigError, load_yaml, loaded_network
 from sb3_saeir.experiment import Experiment
-from sb3_saeir.run import Run, RunFolder, RunOutput, RunSpec
-from sb3_saeir.run.record import config_record
+from sb3_saeir.run.folder import RunFolder
+from sb3_saeir.run.output import RunOutput
+from sb3_saeir.run.record import RunSpec, config_record
+from sb3_saeir.run.run import Run
 
 
 @dataclass
@@ -132,12 +134,11 @@ class RunExperimentManager(ExperimentManager):
         options = {"--save-freq": self.save_freq, "-i": self.trained_agent, "--device": self.device}
         spec = RunSpec(
             self.algo, task, self.seed, int(self.n_timesteps), self.n_envs, period(self.eval_freq),
-            self.n_eval_episodes, {}, config_record(self.saeir_config), options,
+            self.n_eval_episodes, {}, config_record(self.saeir_config), options, vars(self.args),
         )  # fmt: skip
         run = Run(
             spec,
             save_freq=period(self.save_freq) or sys.maxsize,  # never but on Ctrl-C
-            command=vars(self.args),
             continue_model=bool(self.trained_agent),
         )
         experiment = Experiment(self.algo, task, {"env_kwargs": dict(self.env_kwargs)}, seed=self.seed, n_games=self.n_envs)
@@ -147,8 +148,13 @@ class RunExperimentManager(ExperimentManager):
         run.execute(
             self.zoo_train.folder,
             experiment,
-            output=RunOutput(command_line=True, verbose=self.verbose, progress_bar=self.show_progress, callbacks=callbacks),
-            announce=_announce_resume,
+            output=RunOutput(
+                command_line=True,
+                verbose=self.verbose,
+                progress_bar=self.show_progress,
+                callbacks=callbacks,
+                announce=_announce_resume,
+            ),
         )
         assert run.checkpoints is not None
         self.zoo_train.stop_line, self.zoo_train.stop_signal = run.stop_line(), run.stop_signal
@@ -159,7 +165,7 @@ class RunExperimentManager(ExperimentManager):
             super().save_trained_model(model)
 
 
-def _announce_resume(run: Run) -> None:
+def _announce_resume(run: Run, experiment: Experiment) -> None:
     if run.resume is not None:
         print(f"Resuming {run.folder} from {run.resume.checkpoint.name}")
 

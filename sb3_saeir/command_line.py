@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_saeir.common.checks import MAX_TIMESTEPS, check_device
-from sb3_saeir.common.utils import MAX_SEED, check_seed, unwritable_folder
+from sb3_saeir.common.utils import DRAW_SEED, check_seed, unwritable_folder
 from sb3_saeir.config import (
     ConfigError,
     check_algo,
@@ -27,7 +27,6 @@ from sb3_saeir.config import (
     parse_params,
 )
 from sb3_saeir.envs import list_tasks
-from sb3_saeir.run.files import ARGS_FILE, SPEC_FILE
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -70,10 +69,6 @@ def check_range(option: str, value: int | None, low: int, meaning: str = "") -> 
     """
     if value is not None and value < low:
         raise ConfigError(f"{option} must be >= {low}{meaning}, got {value}.")
-
-
-# The --seed of the training commands that draws a seed (rl-zoo's convention)
-DRAW_SEED = -1
 
 
 def check_seed_option(seed: int, option: str = "--seed", draw: int | None = None) -> None:
@@ -244,43 +239,3 @@ def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
 
 # Values of --double-buffered -> the algorithms' double_buffered.
 DOUBLE_BUFFERED_FLAGS = {"auto": "auto", "on": True, "off": False}
-
-
-def stored_record_seed(stored: dict[str, Any], folder: Path) -> int:
-    """The seed a run's settings record holds, refused when it is not a seed (missing, a bool, not an integer, out of
-    ``0 .. 2**32 - 1``): the record is damaged.
-
-    :param stored: the run's settings record (``spec.json``, or an older run's ``<task>/args.yml``)
-    :param folder: the run's folder
-    :raises ~sb3_saeir.config.ConfigError: naming the file, the value and the fix
-    """
-    seed = stored.get("seed", _MISSING)
-    if isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed <= MAX_SEED:
-        return seed
-    spec = folder / SPEC_FILE
-    record = spec if spec.is_file() else folder / str(stored.get("task")) / ARGS_FILE
-    shown = "missing" if seed is _MISSING else repr(seed)
-    raise ConfigError(
-        f"--resume: {record} is damaged (its seed is {shown}, not a seed 0 .. 2**32 - 1); restore it from a copy."
-    )
-
-
-_MISSING = object()  # stored_record_seed: a record without a seed
-
-
-def resumed_seed(seed: int | None, stored: dict[str, Any], folder: Path) -> int:
-    """The seed of a resumed run: its record's; the command's ``--seed`` must be that seed, or left out (``None``), or
-    -1 (``DRAW_SEED``, rl-zoo3's default).
-
-    :param seed: the command's ``--seed`` (``None``: not given)
-    :param stored: the run's settings record
-    :param folder: the run's folder
-    :raises ~sb3_saeir.config.ConfigError: when the command gives another seed, or the record's seed is not a seed
-    """
-    stored_seed = stored_record_seed(stored, folder)
-    if seed is not None and seed not in (stored_seed, DRAW_SEED):
-        raise ConfigError(
-            f"--resume: {folder} was made with --seed {stored_seed}, not --seed {seed}: a run goes on with its own seed. "
-            f"Give --seed {stored_seed} (or no --seed), or start a new run without --resume."
-        )
-    return stored_seed

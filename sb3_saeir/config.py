@@ -227,9 +227,7 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
         isinstance(n_timesteps, bool) or not isinstance(n_timesteps, (int, float)) or n_timesteps < 1
     ):
         raise ConfigError(f"n_timesteps (-n, agent-steps) must be a positive number, got {n_timesteps!r}.")
-    num_cpus = overrides.get("num_cpus", hyperparams.get("num_cpus", 0))
-    if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 0:
-        raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
+    check_num_cpus(overrides.get("num_cpus", hyperparams.get("num_cpus", 0)))
 
 
 def check_params_against_flags(params: dict[str, Any], flags: dict[str, tuple[str, Any]]) -> None:
@@ -254,6 +252,16 @@ def check_n_envs(n_envs: Any) -> None:
     """
     if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1):
         raise ConfigError(f"n_envs (number of games) must be a positive integer, got {n_envs!r}; e.g. n_envs: 8.")
+
+
+def check_num_cpus(num_cpus: Any) -> None:
+    """Refuse a ``num_cpus`` (env worker processes) that is not an integer >= 0.
+
+    :param num_cpus: the value
+    :raises ~sb3_saeir.config.ConfigError: naming ``num_cpus``
+    """
+    if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 0:
+        raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
 
 
 def config_dir() -> Path:

@@ -18,7 +18,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_saeir.common.atomic import save_model
 from sb3_saeir.common.run_state import load_resume_state
-from sb3_saeir.common.utils import MAX_SEED, check_number
+from sb3_saeir.common.utils import MAX_SEED
 from sb3_saeir.common.vec_env import make_multiagent_vec_env
 from sb3_saeir.config import (
     ALGOS,
@@ -26,6 +26,8 @@ from sb3_saeir.config import (
     ModelSettings,
     build_callbacks,
     check_algo,
+    check_n_envs,
+    check_num_cpus,
     load_hyperparams,
     loaded_network,
     model_settings,
@@ -85,8 +87,8 @@ class Experiment:
         self.seed = seed
         games = n_games if n_games is not None else self.hyperparams.get("n_envs", DEFAULT_N_GAMES)
         cpus = num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0)
-        check_number("Experiment", "n_games", games, ">= 1", lambda value: value >= 1, integer=True)
-        check_number("Experiment", "num_cpus", cpus, ">= 0", lambda value: value >= 0, integer=True)
+        check_n_envs(games)
+        check_num_cpus(cpus)
         self.n_games, self.num_cpus = int(games), int(cpus)
         self.model: BaseAlgorithm | None = None
         self.env: VecEnv | None = None

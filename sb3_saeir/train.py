@@ -32,7 +32,6 @@ from sb3_saeir.command_line import (
     one_line_warnings,
     resolve_hyperparams,
     resume_target,
-    resumed_seed,
 )
 from sb3_saeir.common.callbacks import BudgetEstimate
 from sb3_saeir.common.extras import MissingExtraError, require_extra
@@ -164,16 +163,16 @@ def train(args: argparse.Namespace) -> Path:
         if mismatch:
             raise ConfigError(f"--trained-agent {mismatch}")
     set_num_threads(args.num_threads)
-    with run_folder(args) as folder:  # given back at the end; a new run's folder removed when the command is refused
+    with claimed_or_found_folder(args) as folder:  # held to the end; a refused new run's removed
         if folder.record is None:
             seed = int(np.random.randint(2**31 - 1)) if args.seed == DRAW_SEED else (args.seed or 0)
         else:
             check_not_a_benchmark_run(folder.path, folder.record)
-            seed = resumed_seed(args.seed, folder.record, folder.path)
+            seed = folder.resumed_seed(args.seed)
         return _execute(args, hyperparams, folder, seed)
 
 
-def run_folder(args: argparse.Namespace) -> RunFolder:
+def claimed_or_found_folder(args: argparse.Namespace) -> RunFolder:
     """The command's run folder, held: a new run's claimed, or the one ``--resume`` names found.
 
     :param args: the command

@@ -99,3 +99,11 @@ def tiny_saeir_benchmark_run(tmp_path_factory):
     argv += ["--eval-freq", "450", "--eval-episodes", "1", "-params", "n_steps:25", "n_epochs:1", "--out", str(out)]
     assert benchmark_main(argv) == 0
     return out / "runs" / "saeir_ppo" / "cn-sparse-n3_s1"
+
+
+@pytest.fixture
+def model(env, tiny_kwargs):
+    """A tiny ``SAEIR_PPO`` on :func:`env` (the bad-input tests' model)."""
+    from sb3_saeir import SAEIR_PPO
+
+    return SAEIR_PPO("MSHGPolicy", env, **tiny_kwargs)

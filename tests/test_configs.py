@@ -127,3 +127,29 @@ def test_football_ablations_change_only_their_half_of_saeir(task):
     assert load_hyperparams("mshg_only", task) == {**without_bonus, "intrinsic_reward": None}
     assert load_hyperparams("sae_only", task) == {**mappo, "intrinsic_reward": "saeir", "intrinsic_coef": 0.1}
     assert saeir["intrinsic_coef"] == 0.1
+
+
+def test_experiment_of_an_unknown_task_is_refused_when_made():
+    from sb3_saeir.experiment import Experiment
+
+    with pytest.raises(KeyError) as error:
+        Experiment("mappo", "nope-task")  # accepted; the KeyError came at build()
+    assert "Unknown task 'nope-task'. Registered tasks:" in str(error.value)
+
+
+@pytest.mark.parametrize(
+    "games, cpus, message",
+    [
+        (2.5, None, "n_envs (number of games) must be a positive integer, got 2.5; e.g. n_envs: 8."),
+        (0, None, "n_envs (number of games) must be a positive integer, got 0; e.g. n_envs: 8."),
+        (True, None, "n_envs (number of games) must be a positive integer, got True; e.g. n_envs: 8."),
+        (2, -1, "num_cpus (env worker processes) must be an integer >= 0, got -1."),
+        (2, "2", "num_cpus (env worker processes) must be an integer >= 0, got '2'."),
+    ],
+)
+def test_experiment_refuses_game_and_worker_counts_that_are_not_counts(games, cpus, message):
+    from sb3_saeir.experiment import Experiment
+
+    with pytest.raises(ValueError) as error:
+        Experiment("mappo", "cn-sparse-n3", n_games=games, num_cpus=cpus)
+    assert str(error.value) == message

@@ -130,6 +130,18 @@ def get_task_spec(task_id: str) -> TaskSpec:
 VEC_ENV_KEYS = ("backend",)
 
 
+def game_kwargs(task_id: str, env_kwargs: Any) -> dict[str, Any]:
+    """The keyword arguments each game of a task is built with: the task's registered defaults (for navigation, its
+    reward options: ``docs/tasks.md``) under ``env_kwargs`` (a config's), without :data:`VEC_ENV_KEYS`.
+
+    :param task_id: the task id (one that is not registered: ``env_kwargs`` alone)
+    :param env_kwargs: the config's ``env_kwargs`` (anything but a dict: none)
+    """
+    registered = _TASKS[task_id].kwargs if task_id in _TASKS else {}
+    merged = {**registered, **(env_kwargs if isinstance(env_kwargs, dict) else {})}
+    return {key: value for key, value in merged.items() if key not in VEC_ENV_KEYS}
+
+
 def get_task_factory(task_id: str) -> Callable[..., ParallelEnv]:
     """A callable building one game of ``task_id``; caller kwargs override the registered defaults (a ``backend``
     keyword, which selects the vec env, is ignored)."""

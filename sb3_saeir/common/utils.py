@@ -147,6 +147,8 @@ def keywords_taken(function: Callable[..., Any]) -> tuple[str, ...] | None:
 
 # Largest seed: SB3's ``set_random_seed`` seeds NumPy's legacy generator, which takes 0 .. 2**32 - 1.
 MAX_SEED = 2**32 - 1
+# The --seed of the training commands that draws a seed (rl-zoo's convention).
+DRAW_SEED = -1
 
 
 def check_seed(owner: str, seed: Any, name: str = "seed", hint: str = " (or None)") -> int | None:

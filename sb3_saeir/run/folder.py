@@ -14,9 +14,10 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from sb3_saeir.common.utils import unwritable_folder
+from sb3_saeir.common.utils import DRAW_SEED, MAX_SEED, unwritable_folder
 from sb3_saeir.config import ConfigError
 from sb3_saeir.run.files import (
+    ARGS_FILE,
     BEST_MODEL_FILE,
     DONE_FILE,
     EVALUATIONS_FILE,
@@ -119,9 +120,8 @@ class RunFolder:
     def find(
         cls, log_folder: str | Path, algo: str, task: str, resume: int | Path, legacy_record: LegacyRecord | None = None
     ) -> RunFolder:
-        """Lock the run folder ``--resume`` names (:func:`find_run_folder`), read its settings record
-        (:func:`~sb3_saeir.run.record.stored_record`) and check that the run can go on there
-        (:func:`check_run_folder_writable`).
+        """Lock the run folder ``--resume`` names (:func:`find_run_folder`), check that the run can go on there
+        (:func:`check_run_folder_writable`) and read its settings record (:func:`~sb3_saeir.run.record.stored_record`).
 
         :param log_folder: the log folder (``-f``)
         :param algo: the method of the command
@@ -133,9 +133,9 @@ class RunFolder:
         """
         path = find_run_folder(log_folder, algo, task, resume)
         found = cls(path, RunFolderLock(path).acquire(), resumed=True, by_path=isinstance(resume, Path))
-        try:  # before anything is written
-            found.record = stored_record(path, algo, task, legacy_record)
+        try:  # before anything is read for the run or written
             check_run_folder_writable(path)
+            found.record = stored_record(path, algo, task, legacy_record)
         except BaseException:
             found.close()
             raise
@@ -163,6 +163,21 @@ class RunFolder:
             taken.close()
             raise
         return taken
+
+    def resumed_seed(self, seed: int | None) -> int:
+        """The seed of the run that ``--resume`` continues: its record's; the command's ``--seed`` must be that seed,
+        or left out (``None``), or -1 (``DRAW_SEED``, rl-zoo3's default).
+
+        :param seed: the command's ``--seed`` (``None``: not given)
+        :raises ~sb3_saeir.config.ConfigError: when the command gives another seed, or the record's seed is not a seed
+        """
+        stored_seed = stored_record_seed(self.record or {}, self.path)
+        if seed is not None and seed not in (stored_seed, DRAW_SEED):
+            raise ConfigError(
+                f"--resume: {self.path} was made with --seed {stored_seed}, not --seed {seed}: a run goes on with its own "
+                f"seed. Give --seed {stored_seed} (or no --seed), or start a new run without --resume."
+            )
+        return stored_seed
 
     def close(self, refused: bool = False) -> None:
         """Give the lock back. A claimed folder of a command ``refused`` before its run recorded itself (no
@@ -358,3 +373,26 @@ def no_space_message(folder: Path, error: OSError) -> str:
         f"{what}: the run in {folder} stopped; its last good checkpoint is {checkpoint.name}. Free some space, then run "
         "the same command with --resume to continue from it."
     )
+
+
+# ---------------------------------------------------------------------------------------------------- the record's seed
+def stored_record_seed(stored: dict[str, Any], folder: Path) -> int:
+    """The seed a run's settings record holds, refused when it is not a seed (missing, a bool, not an integer, out of
+    ``0 .. 2**32 - 1``): the record is damaged.
+
+    :param stored: the run's settings record (``spec.json``, or an older run's ``<task>/args.yml``)
+    :param folder: the run's folder
+    :raises ~sb3_saeir.config.ConfigError: naming the file, the value and the fix
+    """
+    seed = stored.get("seed", _NO_SEED)
+    if isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed <= MAX_SEED:
+        return seed
+    spec = folder / SPEC_FILE
+    record = spec if spec.is_file() else folder / str(stored.get("task")) / ARGS_FILE
+    shown = "missing" if seed is _NO_SEED else repr(seed)
+    raise ConfigError(
+        f"--resume: {record} is damaged (its seed is {shown}, not a seed 0 .. 2**32 - 1); restore it from a copy."
+    )
+
+
+_NO_SEED = object()  # stored_record_seed: a record without a seed

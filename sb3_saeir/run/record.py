@@ -19,7 +19,7 @@ from typing import Any
 import yaml
 
 from sb3_saeir.common.atomic import atomic_write_text, keep_damaged, unused_name
-from sb3_saeir.common.registry import VEC_ENV_KEYS, get_task_spec, list_tasks
+from sb3_saeir.common.registry import game_kwargs
 from sb3_saeir.common.run_state import checkpoint_problem, load_resume_state, read_zip_data, utc_stamp
 from sb3_saeir.common.utils import PACKAGE_VERSION
 from sb3_saeir.config import ConfigError, load_hyperparams
@@ -65,7 +65,7 @@ class RunSpec:
     :param eval_episodes: game episodes per evaluation
     :param params: config overrides (``-params``)
     :param config: the config entry it trains with (overrides applied); ``None``: the packaged entry of ``algo`` and
-        ``task`` with ``params`` applied, read when needed (:meth:`resolved_config`)
+        ``task`` with ``params`` applied, read when the spec is made
     :param options: the command's other settings that a resume must repeat, by their flags (``--save-freq``, ...)
     :param command: the command as ``<task>/args.yml`` records it (rl-zoo3's file; not a setting: ``spec.json`` leaves
         it out); empty: the ``python -m sb3_saeir.train`` arguments that make the same run (:func:`train_command`)
@@ -83,33 +83,22 @@ class RunSpec:
     options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
     command: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
+    def __post_init__(self) -> None:
+        if self.config is None:  # the packaged entry, read once, where the spec is made
+            object.__setattr__(self, "config", {**load_hyperparams(self.algo, self.task), **self.params})
+
     @property
     def name(self) -> str:
         return f"{self.algo}/{self.task}_s{self.seed}"
 
     def resolved_config(self) -> dict[str, Any]:
-        """The config entry the run trains with: ``config``, else the packaged entry with ``params`` applied."""
-        if self.config is not None:
-            return dict(self.config)
-        return {**load_hyperparams(self.algo, self.task), **self.params}
+        """The config entry the run trains with (a copy)."""
+        return dict(self.config or {})
 
 
 def _jsonable(value: Any) -> Any:
     """``value`` as it reads back from JSON (tuples become lists, unknown objects their ``str``)."""
     return json.loads(json.dumps(value, sort_keys=True, default=str))
-
-
-def game_kwargs(task: str, config: dict[str, Any]) -> dict[str, Any]:
-    """The keyword arguments each game of a run is built with: the task's registered defaults (for navigation, its
-    reward options: ``docs/tasks.md``) under the config's ``env_kwargs`` (the vec env's ``backend`` left out).
-
-    :param task: the task id (one that is not registered: the config's ``env_kwargs`` alone)
-    :param config: the config entry the run trains with
-    """
-    env_kwargs = config.get("env_kwargs") or {}
-    registered = get_task_spec(task).kwargs if task in list_tasks() else {}
-    merged = {**registered, **(env_kwargs if isinstance(env_kwargs, dict) else {})}
-    return {key: value for key, value in merged.items() if key not in VEC_ENV_KEYS}
 
 
 def spec_record(spec: RunSpec) -> dict[str, Any]:
@@ -119,7 +108,8 @@ def spec_record(spec: RunSpec) -> dict[str, Any]:
     from sb3_saeir import __version__
 
     config = spec.resolved_config()
-    record = {**asdict(spec), "config": config, "game_kwargs": game_kwargs(spec.task, config), "version": __version__}
+    games = game_kwargs(spec.task, config.get("env_kwargs"))
+    record = {**asdict(spec), "config": config, "game_kwargs": games, "version": __version__}
     del record["command"]
     if not spec.options:
         del record["options"]

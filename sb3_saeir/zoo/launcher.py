@@ -22,7 +22,6 @@ from sb3_saeir.command_line import (
     check_seed_option,
     one_line_warnings,
     resume_target,
-    resumed_seed,
 )
 from sb3_saeir.common.extras import MissingExtraError, require_extra
 from sb3_saeir.common.stop_signals import (
@@ -391,8 +390,7 @@ def claim_run_folder(argv: list[str], resume: int | Path | None) -> tuple[RunFol
         return RunFolder.claim(options.log_folder, options.algo, task), argv
     folder = RunFolder.find(options.log_folder, options.algo, task, resume)
     try:
-        assert folder.record is not None
-        seed = resumed_seed(options.seed, folder.record, folder.path)
+        seed = folder.resumed_seed(options.seed)
     except BaseException:
         folder.close()
         raise

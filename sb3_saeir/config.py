@@ -254,6 +254,22 @@ def check_n_envs(n_envs: Any) -> None:
         raise ConfigError(f"n_envs (number of games) must be a positive integer, got {n_envs!r}; e.g. n_envs: 8.")
 
 
+def check_count(owner: str, name: str, value: Any, low: int) -> int:
+    """A count of an object's (``Experiment``'s ``n_games``, ``num_cpus``) as an int ``>= low``; a fractional, boolean
+    or string value is refused (``int()`` would truncate it), a whole float taken.
+
+    :param owner: the object, for the message
+    :param name: the count's name
+    :param value: its value
+    :param low: the smallest count
+    :raises ValueError: naming the count
+    """
+    whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+    if isinstance(value, bool) or not whole or value < low:
+        raise ValueError(f"{owner}: {name} must be an integer >= {low}, got {value!r}.")
+    return int(value)
+
+
 def check_num_cpus(num_cpus: Any) -> None:
     """Refuse a ``num_cpus`` (env worker processes) that is not an integer >= 0.
 

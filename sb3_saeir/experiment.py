@@ -26,8 +26,7 @@ from sb3_saeir.config import (
     ModelSettings,
     build_callbacks,
     check_algo,
-    check_n_envs,
-    check_num_cpus,
+    check_count,
     load_hyperparams,
     loaded_network,
     model_settings,
@@ -87,9 +86,8 @@ class Experiment:
         self.seed = seed
         games = n_games if n_games is not None else self.hyperparams.get("n_envs", DEFAULT_N_GAMES)
         cpus = num_cpus if num_cpus is not None else self.hyperparams.get("num_cpus", 0)
-        check_n_envs(games)
-        check_num_cpus(cpus)
-        self.n_games, self.num_cpus = int(games), int(cpus)
+        self.n_games = check_count("Experiment", "n_games", games, 1)
+        self.num_cpus = check_count("Experiment", "num_cpus", cpus, 0)
         self.model: BaseAlgorithm | None = None
         self.env: VecEnv | None = None
         self.config_callbacks: list[BaseCallback] = []

@@ -140,11 +140,11 @@ def test_experiment_of_an_unknown_task_is_refused_when_made():
 @pytest.mark.parametrize(
     "games, cpus, message",
     [
-        (2.5, None, "n_envs (number of games) must be a positive integer, got 2.5; e.g. n_envs: 8."),
-        (0, None, "n_envs (number of games) must be a positive integer, got 0; e.g. n_envs: 8."),
-        (True, None, "n_envs (number of games) must be a positive integer, got True; e.g. n_envs: 8."),
-        (2, -1, "num_cpus (env worker processes) must be an integer >= 0, got -1."),
-        (2, "2", "num_cpus (env worker processes) must be an integer >= 0, got '2'."),
+        (2.5, None, "Experiment: n_games must be an integer >= 1, got 2.5."),
+        (0, None, "Experiment: n_games must be an integer >= 1, got 0."),
+        (True, None, "Experiment: n_games must be an integer >= 1, got True."),
+        (2, -1, "Experiment: num_cpus must be an integer >= 0, got -1."),
+        (2, "2", "Experiment: num_cpus must be an integer >= 0, got '2'."),
     ],
 )
 def test_experiment_refuses_game_and_worker_counts_that_are_not_counts(games, cpus, message):
@@ -153,3 +153,9 @@ def test_experiment_refuses_game_and_worker_counts_that_are_not_counts(games, cp
     with pytest.raises(ValueError) as error:
         Experiment("mappo", "cn-sparse-n3", n_games=games, num_cpus=cpus)
     assert str(error.value) == message
+
+
+def test_experiment_takes_a_whole_float_count():
+    from sb3_saeir.experiment import Experiment
+
+    assert Experiment("mappo", "cn-sparse-n3", n_games=2.0, num_cpus=0.0).n_games == 2

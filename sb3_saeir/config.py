@@ -227,7 +227,9 @@ def check_hyperparams(algo: str, hyperparams: dict[str, Any], overrides: dict[st
         isinstance(n_timesteps, bool) or not isinstance(n_timesteps, (int, float)) or n_timesteps < 1
     ):
         raise ConfigError(f"n_timesteps (-n, agent-steps) must be a positive number, got {n_timesteps!r}.")
-    check_num_cpus(overrides.get("num_cpus", hyperparams.get("num_cpus", 0)))
+    num_cpus = overrides.get("num_cpus", hyperparams.get("num_cpus", 0))
+    if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 0:
+        raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
 
 
 def check_params_against_flags(params: dict[str, Any], flags: dict[str, tuple[str, Any]]) -> None:
@@ -268,16 +270,6 @@ def check_count(owner: str, name: str, value: Any, low: int) -> int:
     if isinstance(value, bool) or not whole or value < low:
         raise ValueError(f"{owner}: {name} must be an integer >= {low}, got {value!r}.")
     return int(value)
-
-
-def check_num_cpus(num_cpus: Any) -> None:
-    """Refuse a ``num_cpus`` (env worker processes) that is not an integer >= 0.
-
-    :param num_cpus: the value
-    :raises ~sb3_saeir.config.ConfigError: naming ``num_cpus``
-    """
-    if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 0:
-        raise ConfigError(f"num_cpus (env worker processes) must be an integer >= 0, got {num_cpus!r}.")
 
 
 def config_dir() -> Path:

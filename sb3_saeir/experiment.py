@@ -183,16 +183,20 @@ class Experiment:
         :param requested_policy_kwargs: the command's ``-params policy_kwargs`` (``None``: not given), refused when it
             asks for another network than the saved one
         """
-        if env is not None:
-            self.env = env
-        elif self.env is None:
-            self.env = self.make_env()
+        self._use_env(env)
         settings = self._settings(verbose=verbose, tensorboard_log=tensorboard_log)
         self.model = ALGOS[self.algo].load(path, env=self.env, device=device, seed=self.seed, **settings.algorithm_kwargs)
         network = loaded_network(self.model, path, requested_policy_kwargs, self.hyperparams.get("policy_kwargs"))
         if network is not None:  # the run's record says which network trains
             self.resolved_hyperparams["policy_kwargs"] = network
         return self.model
+
+    def _use_env(self, env: VecEnv | None) -> None:
+        """Take ``env`` as the training env of a model loaded onto it, else keep the one built before, else make one."""
+        if env is not None:
+            self.env = env
+        elif self.env is None:
+            self.env = self.make_env()
 
     def _settings(
         self, verbose: int | None = None, device: str | None = None, tensorboard_log: str | None = None
@@ -226,8 +230,7 @@ class Experiment:
         :param device: torch device
         :param tensorboard_log: tensorboard log folder
         """
-        if self.env is None:
-            self.env = self.make_env()
+        self._use_env(None)
         self.config_callbacks = build_callbacks(self.hyperparams.get("callback"))
         # the checkpoint's own settings; the config's compile (a setting of the machine, not saved) applies
         settings = {"compile": self.hyperparams["compile"]} if "compile" in self.hyperparams else {}

@@ -149,8 +149,7 @@ def get_task_factory(task_id: str) -> Callable[..., ParallelEnv]:
     constructor = spec.load()
 
     def factory(**kwargs: Any) -> ParallelEnv:
-        game_kwargs = {key: value for key, value in kwargs.items() if key not in VEC_ENV_KEYS}
-        return constructor(**{**spec.kwargs, **game_kwargs})
+        return constructor(**game_kwargs(task_id, kwargs))
 
     factory.__name__ = f"make_{task_id.replace('-', '_')}"
     return factory

@@ -227,12 +227,6 @@ def run_numbers(log_folder: str | Path, algo: str, task: str) -> dict[int, Path]
     return {number: path for number, path in numbered_paths(Path(log_folder) / algo, f"{task}_").items() if path.is_dir()}
 
 
-def next_run_folder(log_folder: str | Path, algo: str, task: str) -> Path:
-    """``<log_folder>/<algo>/<task>_<run>`` with the first unused run number (rl-zoo's numbering), not created: two
-    commands asking at once get the same one (:meth:`RunFolder.claim` makes it exclusively)."""
-    return Path(log_folder) / algo / f"{task}_{max(run_numbers(log_folder, algo, task), default=0) + 1}"
-
-
 def find_run_folder(log_folder: str | Path, algo: str, task: str, resume: int | Path) -> Path:
     """The run folder ``--resume`` names: the latest run of ``--algo`` on ``--task`` in ``--log-folder``, run ``N``,
     or a run folder's path (a moved run).

@@ -234,3 +234,37 @@ def test_a_chunk_longer_than_the_rollout_trains_as_the_rollout_and_warns(algo, p
         parameters.append(th.cat([p.detach().flatten() for p in model.policy.parameters()]))
         env.close()
     th.testing.assert_close(parameters[0], parameters[1], atol=1e-5, rtol=0)
+
+
+def test_a_bonus_on_an_episodes_first_step_moves_only_that_steps_advantage_and_return():
+    """The worked example of docs/results/football-ablation.md: one game of one agent, 4 steps, gamma 0.99, lambda
+    0.95, every value 0.5, no env reward; an episode ends after step 1 and the next starts at step 2, where a bonus
+    b = 0.5 is written. GAE stops at the episode boundary (``m_2 = 0``), so the bonus raises step 2's advantage and
+    its return, the value target of the new episode's first state, by exactly b, and nothing else."""
+
+    def advantages_and_returns(bonus_at_first_step):
+        buffer = GroupedRecurrentRolloutBuffer(
+            4, spaces.Box(-1, 1, (1,)), spaces.Discrete(2), n_envs=1, n_agents=1, n_scales=1,
+            actor_hidden_size=0, critic_hidden_size=0, data_chunk_length=4, gamma=0.99, gae_lambda=0.95,
+        )  # fmt: skip
+        for start in (1.0, 0.0, 1.0, 0.0):  # episode 1: steps 0-1; episode 2 starts at step 2
+            buffer.add(
+                np.zeros((1, 1), dtype=np.float32), np.zeros(1), np.zeros(1, dtype=np.float32), np.array([start]),
+                th.full((1, 1), 0.5), th.zeros(1), actor_states=th.zeros(1, 0), critic_states=th.zeros(1, 1, 1, 0),
+            )  # fmt: skip
+        bonus = np.zeros((4, 1), dtype=np.float32)  # (T, E)
+        bonus[2, 0] = bonus_at_first_step
+        buffer.add_intrinsic_rewards(bonus)
+        buffer.set_last_step(th.full((1, 1), 0.5), np.zeros(1))
+        buffer.compute_returns_and_advantage()
+        return buffer.advantages[:, 0, 0], buffer.returns[:, 0, 0]
+
+    gamma, lam, value = 0.99, 0.95, 0.5
+    step = gamma * value - value  # a step inside an episode: delta = 0 + gamma * 0.5 - 0.5 = -0.005
+    # by hand, backwards: step 3 bootstraps on the last value; step 1 ends its episode (delta = -V)
+    expected = np.array([step + gamma * lam * (-value), -value, step + gamma * lam * step, step])
+    advantages, returns = advantages_and_returns(0.0)
+    np.testing.assert_allclose(advantages, expected, atol=1e-6)  # [-0.47525, -0.5, -0.0097025, -0.005]
+    with_bonus, returns_with_bonus = advantages_and_returns(0.5)
+    np.testing.assert_allclose(with_bonus - advantages, [0.0, 0.0, 0.5, 0.0], atol=1e-6)
+    np.testing.assert_allclose(returns_with_bonus - returns, [0.0, 0.0, 0.5, 0.0], atol=1e-6)

@@ -10,9 +10,11 @@
 # SAEIR_PPO seed 4 is trained in four legs (-n 750k, 1.5M, 2.25M, 3M agent-steps; training a finished run longer ends
 # as the uninterrupted run of the larger budget), and each leg's final model is kept with its spec.json in
 # $KEEP/saeir_ppo_s4_<thousands of env steps>k/ for benchmarks/bonus_rise.py (outside the repository).
-# A run whose done.json is committed beside this script is skipped; re-running resumes the others from their
-# checkpoints (the benchmark's own resume). When a navigation pair shares the machine, pause it (kill -STOP) while
-# this queue runs, and note it in $OUT/scheduling.log.
+# A run whose done.json is committed beside this script at the full budget (3M agent-steps; SAEIR_PPO seed 4 writes
+# one after each leg) is skipped; re-running resumes the others from their checkpoints (the benchmark's own resume).
+# When a navigation pair shares the machine, pause it while this queue runs, or run it in its own session at
+# autogroup nice 19 (echo 19 > /proc/<pid>/autogroup; plain nice does not hold across sessions), and note it in
+# $OUT/scheduling.log.
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
 WORKTREE="${WORKTREE:-$HOME/saeir-football-ablation}"
@@ -30,7 +32,9 @@ mkdir -p "$OUT" "$KEEP"
 echo "$(date -u +%FT%TZ) queue start (commit $(git rev-parse --short HEAD)): ${RUNS[*]}"
 for run in "${RUNS[@]}"; do
     IFS=: read -r algo seed <<< "$run"
-    if [ -f "$HERE/runs/$algo/${TASK}_s$seed/done.json" ]; then
+    done_file="$HERE/runs/$algo/${TASK}_s$seed/done.json"
+    # skipped only when the committed done.json is at the full budget: SAEIR_PPO seed 4 writes one after each leg
+    if [ -f "$done_file" ] && [ "$(sed -n 's/.*"timesteps": *\([0-9]*\).*/\1/p' "$done_file")" -ge 3000000 ]; then
         echo "$(date -u +%FT%TZ) $run: committed as done, skipped"
         continue
     fi

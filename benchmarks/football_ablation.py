@@ -61,13 +61,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_saeir.benchmark import read_rows
 from sb3_saeir.envs import get_task_spec
 
 sys.path.insert(0, str(Path(__file__).parent))
-from learning_speed import Curve, earlier_test, first_reach, reach_ranks, seed_curves, value_at
+from evaluation_curves import metric_curve
+from learning_speed import Curve, earlier_test, first_reach, reach_ranks, value_at
 from results_pages import DOCS, NAMES, NONE, millions
-from table1_navigation import table, write_markdown
+from table1_navigation import read_run_files, table, write_markdown
 
 STUDY = "football-ablation"
 TASK = "grf-3v1-keeper"
@@ -124,6 +124,11 @@ def run_folder(algo: str, seed: int) -> str:
 RUNS = tuple(PlannedRun(algo, seed, run_folder(algo, seed)) for algo in ARMS for seed in SEEDS[algo])
 
 
+def cut_at_window(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The evaluations in the common window (env steps <= 1M)."""
+    return [row for row in rows if float(row["env_steps"]) <= WINDOW]
+
+
 class RunState(NamedTuple):
     """What the committed files of a planned run say.
 
@@ -133,6 +138,7 @@ class RunState(NamedTuple):
     :param finished_by: what says it finished (``done.json``, or ``segments.json`` for a run whose ``done.json`` was
         never committed); ``None``: it has not finished
     :param differences: how its ``spec.json`` differs from the protocol (empty: it does not)
+    :param curve: its success curve (%) cut at 1M env steps (``None``: no evaluation in the window yet)
     """
 
     run: PlannedRun
@@ -140,11 +146,12 @@ class RunState(NamedTuple):
     spec: dict[str, Any] | None
     finished_by: str | None
     differences: list[str]
+    curve: Curve | None
 
     @property
     def window_rows(self) -> list[dict[str, Any]]:
         """The evaluations in the common window (env steps <= 1M)."""
-        return [row for row in self.rows if float(row["env_steps"]) <= WINDOW]
+        return cut_at_window(self.rows)
 
     @property
     def budget(self) -> float:
@@ -154,14 +161,8 @@ class RunState(NamedTuple):
     @property
     def final(self) -> bool:
         """Finished, following the protocol, with an evaluation at 1M env steps."""
-        window = self.window_rows
-        return self.finished_by is not None and not self.differences and bool(window) and window[-1]["env_steps"] == WINDOW
-
-    @property
-    def curve(self) -> Curve | None:
-        """Its success curve (%) cut at 1M env steps (``None``: no evaluation yet)."""
-        curves = seed_curves(self.window_rows)
-        return next(iter(next(iter(curves.values())).values())) if curves else None
+        evaluated_to = None if self.curve is None else self.curve[0][-1]
+        return self.finished_by is not None and not self.differences and evaluated_to == WINDOW
 
     def state(self) -> str:
         """``final at 1M env steps``, ``running, at 0.5M env steps``, ``no run files yet``, ..."""
@@ -215,13 +216,13 @@ def finished_record(folder: Path, spec: dict[str, Any]) -> str | None:
 def read_run(run: PlannedRun, results: Path) -> RunState:
     """The state of a planned run from its committed files under ``results`` (a missing folder: no run files yet)."""
     folder = results / run.folder
-    if not (folder / "spec.json").is_file():
-        return RunState(run, [], None, None, [])
-    spec = json.loads((folder / "spec.json").read_text())
-    rows = sorted(read_rows(folder / "evaluations.csv"), key=lambda row: float(row["env_steps"]))
-    for row in rows:
-        row["env_steps"] = float(row["env_steps"])
-    return RunState(run, rows, spec, finished_record(folder, spec), protocol_differences(spec, run))
+    files = read_run_files(folder)
+    if files is None:
+        return RunState(run, [], None, None, [], None)
+    spec, rows = files
+    window = cut_at_window(rows)
+    curve = metric_curve(window, "success") if window else None
+    return RunState(run, rows, spec, finished_record(folder, spec), protocol_differences(spec, run), curve)
 
 
 def name(s: RunState) -> str:

@@ -169,13 +169,22 @@ def protocol_differences(spec: dict[str, Any], run: PlannedRun) -> list[str]:
     return [f"{name} {found} (expected {wanted})" for name, (found, wanted) in checks.items() if found != wanted]
 
 
+def read_run_files(folder: Path) -> tuple[dict[str, Any], list[dict[str, Any]]] | None:
+    """A run folder's committed ``spec.json`` and its evaluations sorted by env steps (none yet: ``[]``); ``None``
+    when the folder has no ``spec.json`` (no run files yet)."""
+    if not (folder / "spec.json").is_file():
+        return None
+    spec = json.loads((folder / "spec.json").read_text())
+    return spec, sorted(read_rows(folder / "evaluations.csv"), key=lambda row: float(row["env_steps"]))
+
+
 def read_run(run: PlannedRun, results: Path) -> RunState:
     """The state of a planned run from its committed files under ``results`` (a missing folder: no run files yet)."""
     folder = results / run.folder
-    if not (folder / "spec.json").is_file():
+    files = read_run_files(folder)
+    if files is None:
         return RunState(run, [], None, False, [])
-    spec = json.loads((folder / "spec.json").read_text())
-    rows = sorted(read_rows(folder / "evaluations.csv"), key=lambda row: float(row["env_steps"]))
+    spec, rows = files
     return RunState(run, rows, spec, (folder / "done.json").is_file(), protocol_differences(spec, run))
 
 

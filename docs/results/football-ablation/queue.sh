@@ -2,7 +2,9 @@
 # Issue 65 (football 3 vs 1: which half of SAEIR leaves the floor earlier): eight runs, one benchmark job at a time,
 # stage F's protocol (the packaged configs, 8 games on 2 env workers, two torch threads, evaluations every 250k env
 # steps and at 0 on 100 greedy episodes), to 1M env steps = 3M agent-steps, from the worktree at $WORKTREE (a fixed
-# commit). Order: MSHG-only and SAE-only seeds 1-3 (alternating), then SAEIR_PPO and MAPPO seed 4.
+# commit). Order: MSHG-only and SAE-only seeds 1 and MSHG-only seed 2, then SAEIR_PPO and MAPPO seed 4 (SAEIR_PPO
+# seed 4's kept models are what part 3 reads), then SAE-only seed 2 and both ablations' seed 3. The order changes no
+# setting of a run; the rule is read only when every run it needs is final.
 #
 #   bash docs/results/football-ablation/queue.sh                        # every run not yet committed as done
 #   bash docs/results/football-ablation/queue.sh sae_only:2 mappo:4     # only these, in this order
@@ -25,7 +27,7 @@ OUT="$HOME/saeir-results/football-ablation"
 KEEP="$OUT/kept-models"
 TASK=grf-3v1-keeper
 COMMON=(--tasks "$TASK" --n-games 8 --eval-freq 750000 --eval-episodes 100 -params num_cpus:2 --num-threads 2 --jobs 1)
-ALL_RUNS=(mshg_only:1 sae_only:1 mshg_only:2 sae_only:2 mshg_only:3 sae_only:3 saeir_ppo:4 mappo:4)
+ALL_RUNS=(mshg_only:1 sae_only:1 mshg_only:2 saeir_ppo:4 mappo:4 sae_only:2 mshg_only:3 sae_only:3)
 RUNS=("$@")
 [ ${#RUNS[@]} -gt 0 ] || RUNS=("${ALL_RUNS[@]}")
 mkdir -p "$OUT" "$KEEP"

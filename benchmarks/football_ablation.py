@@ -27,6 +27,9 @@ its state (``running, at 0.5M env steps``, ``no run files yet``, ...) and enters
 - ``reaches.md``: per method and threshold (10 and 20 % success), each seed's first evaluation at or above it;
 - ``rule.md``: the rule below, then its tests and the case found per threshold (pending while a run it needs is not
   final);
+- ``runs.csv`` and ``table.md``: the final runs' evaluations cut at 1M env steps and the benchmark's final table of
+  them (``table1_navigation.write_final_runs``: neither file before a run is final), which ``docs/results.md``'s rows
+  and its football figure read;
 - ``curves.png``: every run's success curve to 1M env steps (thin), each method's mean over its final seeds (thick);
 - ``bonus_rise.md``, only where it is missing: a placeholder naming the four kept models, until ``report.sh bonus``
   writes ``benchmarks/bonus_rise.py``'s tables there (an existing ``bonus_rise.md`` is left untouched).
@@ -67,7 +70,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from evaluation_curves import metric_curve
 from learning_speed import Curve, earlier_test, first_reach, reach_ranks, value_at
 from results_pages import DOCS, NAMES, NONE, millions
-from table1_navigation import read_run_files, table, write_markdown
+from table1_navigation import read_run_files, table, write_final_runs, write_markdown
 
 STUDY = "football-ablation"
 TASK = "grf-3v1-keeper"
@@ -455,6 +458,7 @@ def build(results: Path) -> list[RunState]:
     write_markdown(out / "success.md", success_table(states))
     write_markdown(out / "reaches.md", reaches_table(states))
     write_markdown(out / "rule.md", rule_lines(states))
+    write_final_runs(out, [row for s in states if s.final for row in s.window_rows])
     if not (out / "bonus_rise.md").is_file():
         write_markdown(out / "bonus_rise.md", bonus_placeholder())
     plot_curves(states, out / "curves.png")

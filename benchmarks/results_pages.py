@@ -4,7 +4,7 @@ rebuilt from the committed run files, so that the pages cannot drift from the da
     python benchmarks/results_pages.py              # rewrite the generated blocks of every results page
     python benchmarks/results_pages.py --check      # exit 1, naming each block that differs from the run files
     python benchmarks/results_pages.py --out DIR    # write the rebuilt pages into DIR (the pages stay as they are)
-    python benchmarks/results_pages.py --figures    # also redraw docs/results/summary/navigation_seeds.png
+    python benchmarks/results_pages.py --figures    # also redraw the summary's figures (docs/results/summary/*.png)
     python benchmarks/results_pages.py --curves docs/results/stage2-default   # redraw a folder's curves.png
 
 A generated block of a page sits between ``<!-- results_pages: KIND ARGUMENTS -->`` and ``<!-- /results_pages -->``
@@ -99,6 +99,7 @@ class Row(NamedTuple):
         whose IQM intervals this row repeats, bootstrapped together in that order; empty: this row's runs alone
     :param iqm_name: this row's name in ``iqm_group`` (default: its method's ``algo``)
     :param summary: whether the summary table shows the row
+    :param task_id: the runs' task id, where ``runs`` hold more than one task (``None``: they hold one)
     """
 
     task: str
@@ -109,6 +110,7 @@ class Row(NamedTuple):
     iqm_group: tuple[str, ...] = ()
     iqm_name: str | None = None
     summary: bool = True
+    task_id: str | None = None
 
 
 class Study(NamedTuple):
@@ -135,11 +137,21 @@ def methods(
     paper: str | None = None,
     iqm_group: tuple[str, ...] = (),
     summary: bool = True,
+    task_id: str | None = None,
 ) -> tuple[Row, ...]:
     """One :class:`Row` per method of ``algos`` (space-separated), its runs ``sources`` with ``{algo}`` filled in; the
     other parameters are :class:`Row`'s, the same for every method."""
     return tuple(
-        Row(task, NAMES[algo], tuple(s.format(algo=algo) for s in sources), random, paper, iqm_group, summary=summary)
+        Row(
+            task,
+            NAMES[algo],
+            tuple(s.format(algo=algo) for s in sources),
+            random,
+            paper,
+            iqm_group,
+            summary=summary,
+            task_id=task_id,
+        )
         for algo in algos.split()
     )
 
@@ -223,8 +235,14 @@ STUDIES: dict[str, Study] = {
     ),
     "navigation-full-budget": Study(
         (
-            *methods(NAV3, ("navigation-full-budget/runs.csv:{algo}",), "mappo saeir_ppo", RANDOM["mpe N=3"]),
-            *methods(NAV4, ("navigation-full-budget/runs.csv:{algo}",), "mappo", RANDOM["mpe N=4"]),
+            *methods(
+                NAV3,
+                ("navigation-full-budget/runs.csv:{algo}",),
+                "mappo saeir_ppo",
+                RANDOM["mpe N=3"],
+                task_id="cn-sparse-n3",
+            ),
+            *methods(NAV4, ("navigation-full-budget/runs.csv:{algo}",), "mappo", RANDOM["mpe N=4"], task_id="cn-sparse-n4"),
         ),
         checkpoints=tuple(2e6 * k for k in range(10)),
     ),
@@ -325,12 +343,15 @@ def source_rows(source: str, results: Path) -> list[dict[str, Any]]:
 
 
 def row_runs(row: Row, results: Path) -> list[dict[str, Any]]:
-    """The evaluation rows of a study row's runs, of its one task (a row of ``navigation-full-budget`` picks it)."""
+    """The evaluation rows of a study row's runs, of its one task (``row.task_id`` where its sources hold several)."""
     rows = [r for source in row.runs for r in source_rows(source, results)]
+    if row.task_id is not None:
+        rows = [r for r in rows if r["task"] == row.task_id]
+        if not rows:
+            raise SystemExit(f"results_pages: no rows of task {row.task_id!r} in {', '.join(row.runs)}.")
     tasks = sorted({r["task"] for r in rows})
-    if len(tasks) > 1:  # navigation-full-budget's runs.csv holds N=3 and N=4: the row's label says which
-        wanted = "cn-sparse-n4" if "N=4" in row.task else "cn-sparse-n3"
-        rows = [r for r in rows if r["task"] == wanted]
+    if len(tasks) > 1:
+        raise SystemExit(f"results_pages: {', '.join(row.runs)} hold tasks {', '.join(tasks)}: name the row's task_id.")
     return rows
 
 
@@ -592,6 +613,49 @@ def pages(docs: Path) -> list[Path]:
     return [docs / "results.md", *studies, *others]
 
 
+COLORS = {"MAPPO": "C0", "SAEIR_PPO": "C3", "MSHG-only": "C2", "SAE-only": "C1"}  # the summary figures' methods
+# Football 3 vs 1 over the first 1M env steps, the four arms of issue 65 (docs/results/football-ablation.md): the final
+# runs cut at 1M that benchmarks/football_ablation.py writes into football-ablation/runs.csv.
+ABLATION_3V1 = methods(THREE, ("football-ablation/runs.csv:{algo}",), "mappo saeir_ppo mshg_only sae_only", RANDOM["3v1"])
+
+
+def draw_panel(axis: Any, title: str, rows: list[Row], results: Path, ylabel: str, paper: bool) -> None:
+    """One panel of a summary figure: every seed's curve of each row (thin) and the row's mean over its seeds (thick),
+    one colour per method; the random policy dotted and, where ``paper``, Table 1 dashed in the method's colour.
+
+    :param axis: the matplotlib axes
+    :param title: the panel's title
+    :param rows: the study rows drawn (one method each)
+    :param results: ``docs/results``
+    :param ylabel: the main metric's label
+    :param paper: whether to draw Table 1's values
+    """
+    import matplotlib
+
+    from sb3_saeir.benchmark.reports import format_steps
+
+    algos = {name: algo for algo, name in NAMES.items()}
+    for row in rows:
+        runs = row_runs(row, results)
+        curves = list(next(iter(seed_curves(runs).values())).values())
+        for steps, values in curves:
+            axis.plot(steps, values, color=COLORS[row.method], alpha=0.35, linewidth=0.9)
+        common = min(len(steps) for steps, _ in curves)
+        mean = np.mean([values[:common] for _, values in curves], axis=0)  # (common,)
+        label = row.method if len(curves) == 1 else f"{row.method} ({len(curves)} seeds)"
+        axis.plot(curves[0][0][:common], mean, color=COLORS[row.method], linewidth=2.2, label=label)
+        value = PAPER.get((runs[0]["task"], algos[row.method]))
+        if value is not None and paper:
+            axis.axhline(float(value.split(" ± ")[0]), color=COLORS[row.method], linestyle="--", linewidth=1,
+                         label=f"{row.method}, Table 1")  # fmt: skip
+    axis.axhline(float(rows[0].random), color="0.35", linestyle=":", linewidth=1, label="random")
+    axis.set_title(title, fontsize=10)
+    axis.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
+    axis.set_xlabel("env steps")
+    axis.set_ylabel(ylabel)
+    axis.legend(fontsize=8)
+
+
 def plot_navigation(results: Path, path: Path) -> None:
     """The summary's navigation figure, six panels: every seed's coverage curve (thin) and each method's mean (thick)
     at 5% of the paper's budget with and without the collision penalty, N=3 and N=4 at its full budget, then N=3 at the
@@ -602,7 +666,7 @@ def plot_navigation(results: Path, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sb3_saeir.benchmark.reports import format_steps, save_figure
+    from sb3_saeir.benchmark.reports import save_figure
 
     five, full = STUDIES["navigation-5pct"].rows, STUDIES["navigation-full-budget"].rows
     calibrated = STUDIES["navigation-calibrated"].rows
@@ -614,28 +678,32 @@ def plot_navigation(results: Path, path: Path) -> None:
         ("N=3 without collision penalty, full budget (1 seed)", [r for r in calibrated if r.task == NAV3_FREE]),
         ("N=3, reach reward, full budget (1 seed)", [r for r in calibrated if r.task == NAV3_REACH]),
     ]
-    colors = {"MAPPO": "C0", "SAEIR_PPO": "C3", "MSHG-only": "C2", "SAE-only": "C1"}
-    algos = {name: algo for algo, name in NAMES.items()}
     figure, axes = plt.subplots(2, 3, figsize=(15.0, 7.6))
     for axis, (title, rows) in zip(axes.flat, panels):
-        for row in rows:
-            runs = row_runs(row, results)
-            curves = list(next(iter(seed_curves(runs).values())).values())
-            for steps, values in curves:
-                axis.plot(steps, values, color=colors[row.method], alpha=0.35, linewidth=0.9)
-            common = min(len(steps) for steps, _ in curves)
-            mean = np.mean([values[:common] for _, values in curves], axis=0)  # (common,)
-            axis.plot(curves[0][0][:common], mean, color=colors[row.method], linewidth=2.2, label=row.method)
-            paper = PAPER.get((runs[0]["task"], algos[row.method]))
-            if paper is not None and "full" in title:
-                value = float(paper.split(" ± ")[0])
-                axis.axhline(value, color=colors[row.method], linestyle="--", linewidth=1, label=f"{row.method}, Table 1")
-        axis.axhline(float(rows[0].random), color="0.35", linestyle=":", linewidth=1, label="random")
-        axis.set_title(title, fontsize=10)
-        axis.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(format_steps))
-        axis.set_xlabel("env steps")
-        axis.set_ylabel("Coverage %")
-        axis.legend(fontsize=8)
+        draw_panel(axis, title, rows, results, "Coverage %", paper="full" in title)
+    save_figure(figure, path)
+
+
+def plot_football(results: Path, path: Path) -> None:
+    """The summary's football figure, three panels: every seed's success curve (thin) and each method's mean (thick)
+    on 3 vs 1 to 2M env steps (``MAPPO`` and ``SAEIR_PPO``), on 3 vs 1 over the first 1M env steps with the two
+    ablations (:data:`ABLATION_3V1`, the final runs only) and on counterattack easy to 4M env steps; the random policy
+    dotted. Table 1 is left out: its values are at 25M env steps, far beyond these axes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sb3_saeir.benchmark.reports import save_figure
+
+    panels = [
+        ("3 vs 1 to 2M env steps", list(STUDIES["football-3v1"].rows)),
+        ("3 vs 1, the first 1M: SAEIR's halves alone", list(ABLATION_3V1)),
+        ("counterattack easy to 4M env steps", list(STUDIES["counterattack-4m"].rows)),
+    ]
+    figure, axes = plt.subplots(1, 3, figsize=(15.0, 4.2), sharey=True)  # one success scale: 1% looks like 1%
+    for axis, (title, rows) in zip(axes.flat, panels):
+        draw_panel(axis, title, rows, results, "Success %", paper=False)
     save_figure(figure, path)
 
 
@@ -655,7 +723,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true", help="change nothing; exit 1 where a page differs")
     parser.add_argument("--out", type=Path, help="write the rebuilt pages here (results.md, results/<study>.md)")
     parser.add_argument("--pages", nargs="+", metavar="STUDY", help="only these study pages (default: every page)")
-    parser.add_argument("--figures", action="store_true", help="also redraw results/summary/navigation_seeds.png")
+    parser.add_argument("--figures", action="store_true", help="also redraw the summary's figures in results/summary/")
     parser.add_argument("--curves", nargs="+", type=Path, default=[], metavar="FOLDER", help="redraw FOLDER/curves.png")
     args = parser.parse_args(argv)
     results = args.docs / "results"
@@ -679,6 +747,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.figures:
         (results / "summary").mkdir(exist_ok=True)
         plot_navigation(results, results / "summary" / "navigation_seeds.png")
+        plot_football(results, results / "summary" / "football_seeds.png")
     for folder in args.curves:
         redraw_curves(folder)
     for line in differing:

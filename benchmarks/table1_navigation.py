@@ -21,6 +21,8 @@ the budget (the paper's 20M env steps, :data:`results_pages.PAPER_ENV_STEPS`); a
   verdicts counted per task;
 - ``reward.md``: Table 1's episode reward beside ours in the authors' unit, with the ratio of ``docs/tasks.md``;
 - ``fire_rate.md``: per ``SAEIR_PPO`` run and scale, the bonus's fire rate over training (its bonus table);
+- ``runs.csv`` and ``table.md``: the final runs' evaluations under their reading's task id and the benchmark's final
+  table of them (:func:`write_final_runs`; neither file before a run is final), which ``docs/results.md``'s rows read;
 - ``curves.png`` (every run's coverage curve, Table 1 dashed with its std shaded) and ``fire_rate.png``.
 
 Definitions (the page states them): a run's final is its coverage % at the evaluation at the budget (200 greedy
@@ -45,7 +47,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_saeir.benchmark import read_rows
+from sb3_saeir.benchmark import read_rows, table_markdown, write_rows
 from sb3_saeir.envs import get_task_spec
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -517,6 +519,30 @@ def write_markdown(path: Path, lines: list[str]) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def write_final_runs(out: Path, rows: list[dict[str, Any]]) -> None:
+    """A study's final runs as the benchmark writes a results folder: ``out/runs.csv`` (their evaluations, read by
+    ``benchmarks/results_pages.py`` for the study's rows in ``docs/results.md``) and ``out/table.md`` (the final table
+    of ``python -m sb3_saeir.benchmark``). With no final run yet neither file exists (a stale pair is removed), so that
+    no summary row can show a run before it is final.
+
+    :param out: the study's folder
+    :param rows: the evaluations of its final runs
+    """
+    if not rows:
+        (out / "runs.csv").unlink(missing_ok=True)
+        (out / "table.md").unlink(missing_ok=True)
+        return
+    write_rows(out / "runs.csv", rows)
+    (out / "table.md").write_text(table_markdown(read_rows(out / "runs.csv")))
+
+
+def final_runs_rows(states: list[RunState]) -> list[dict[str, Any]]:
+    """The evaluations of the final runs, each under the task id of the reading it was read as (N=3 seed 1 ran as
+    ``cn-sparse-n3`` with ``env_kwargs: {collision_penalty: 0.0}``: the same game keywords, checked against the id's by
+    :func:`protocol_differences`)."""
+    return [{**row, "task": s.run.task} for s in states if s.final is not None for row in s.rows]
+
+
 def build(results: Path) -> list[RunState]:
     """Read every planned run under ``results`` and write the study's tables and figures into
     ``results/table1-navigation/``; returns the runs' states."""
@@ -529,6 +555,7 @@ def build(results: Path) -> list[RunState]:
     write_markdown(out / "differences.md", differences_tables(states))
     write_markdown(out / "reward.md", reward_table(states))
     write_markdown(out / "fire_rate.md", fire_rate_table(states, bonus))
+    write_final_runs(out, final_runs_rows(states))
     plot_curves(states, out / "curves.png")
     plot_fire_rates(bonus, out / "fire_rate.png")
     return states

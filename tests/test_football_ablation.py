@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from sb3_saeir.benchmark import read_rows, table_markdown
+
 TASK = "grf-3v1-keeper"
 K = 250_000  # env steps between evaluations
 FIELDS = ["algo", "task", "seed", "timesteps", "env_steps", "n_episodes", "success_mean", "success_std"]
@@ -164,6 +166,12 @@ def test_the_cut_at_1m(ablation, tmp_path):
     assert "| SAEIR_PPO | 10% | 4 vs 4 | 100% | 0.014 | yes |" in rule
     assert "| 10% | yes | yes | both |" in rule
     assert "Every run is final: the rule is applied." in rule
+    # the final runs' file, cut at 1M: MAPPO seed 1's 1.25M and 2M evaluations are not in it
+    rows = read_rows(out / "runs.csv")
+    assert len(rows) == 14 * 5 and max(float(row["env_steps"]) for row in rows) == 1_000_000
+    mappo_1 = [row["success_mean"] for row in rows if row["algo"] == "mappo" and row["seed"] == 1]
+    assert mappo_1 == [0.0, 0.0, 0.05, 0.05, 0.08]
+    assert (out / "table.md").read_text() == table_markdown(rows)
 
 
 def test_pending_while_a_run_is_missing_or_not_final(ablation, tmp_path):
@@ -219,6 +227,8 @@ def test_the_states_of_the_runs(ablation, tmp_path):
     assert "| SAEIR_PPO | 1 | `football-probe/runs/saeir_ppo` | 8 games, 100 episodes every 0.25M env steps | 2M | 5 of 9 " \
         "| segments.json (no done.json) | final at 1M env steps |" in runs  # fmt: skip
     assert "| SAE-only | 3 | `football-ablation/runs/sae_only/grf-3v1-keeper_s3` | - | - | - | - | no run files yet |" in runs
+    rows = read_rows(root / "football-ablation" / "runs.csv")  # the two final runs only, cut at 1M
+    assert sorted({(row["algo"], row["seed"]) for row in rows}) == [("mappo", 1), ("saeir_ppo", 1)] and len(rows) == 10
 
 
 def test_no_run_files_at_all_and_the_bonus_file(ablation, tmp_path):
@@ -227,6 +237,7 @@ def test_no_run_files_at_all_and_the_bonus_file(ablation, tmp_path):
     runs = (out / "runs.md").read_text().splitlines()
     assert len(runs) == 2 + 14 and all(line.endswith("| no run files yet |") for line in runs[2:])
     assert (out / "curves.png").is_file()
+    assert not (out / "runs.csv").exists() and not (out / "table.md").exists()  # no final run: no rows for the summary
     assert "| `kept-models/saeir_ppo_s4_1000k/grf-3v1-keeper.zip` | 1M | not read yet |" in (out / "bonus_rise.md").read_text()
     (out / "bonus_rise.md").write_text("made by report.sh bonus\n")
     ablation.main(["--results", str(tmp_path)])

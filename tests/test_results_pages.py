@@ -107,3 +107,24 @@ def test_a_running_study_page_is_rebuilt_too(pages, tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         pages.main(["--docs", str(docs), "--pages", "no-such-study"])
     assert exit_info.value.code == 2 and "no study page no-such-study; pages: " in capsys.readouterr().err
+
+
+def test_a_row_of_a_file_with_two_tasks_names_its_task(pages):
+    # navigation-full-budget's runs.csv holds N=3 and N=4: a row reads the one its task_id names, and a row without one
+    # is refused rather than mixing the two
+    source = ("navigation-full-budget/runs.csv:mappo",)
+    n4 = pages.Row(pages.NAV4, "MAPPO", source, "2.1", task_id="cn-sparse-n4")
+    assert {row["task"] for row in pages.row_runs(n4, RESULTS)} == {"cn-sparse-n4"}
+    with pytest.raises(SystemExit, match="hold tasks cn-sparse-n3, cn-sparse-n4: name the row's task_id"):
+        pages.row_runs(pages.Row(pages.NAV4, "MAPPO", source, "2.1"), RESULTS)
+    with pytest.raises(SystemExit, match="no rows of task 'cn-sparse-n5'"):
+        pages.row_runs(n4._replace(task_id="cn-sparse-n5"), RESULTS)
+
+
+def test_the_summary_figures_are_drawn_from_the_run_files(pages, tmp_path):
+    docs = tmp_path / "docs"
+    shutil.copytree(RESULTS, docs / "results", ignore=shutil.ignore_patterns("*.png"))
+    shutil.copy(DOCS / "results.md", docs / "results.md")
+    assert pages.main(["--docs", str(docs), "--pages", PAGE, "--figures"]) == 0
+    for name in ("navigation_seeds.png", "football_seeds.png"):
+        assert (docs / "results" / "summary" / name).stat().st_size > 10_000

@@ -9,6 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from sb3_saeir.benchmark import read_rows, table_markdown
+
 N3, N4 = "cn-sparse-no-penalty-n3", "cn-sparse-no-penalty-n4"
 BUDGET = 20_000_000
 FIELDS = ["algo", "task", "seed", "timesteps", "env_steps", "n_episodes", "coverage_rate_mean", "coverage_rate_std"]
@@ -154,8 +156,28 @@ def test_the_bonus_table_and_its_fire_rates(table1, results):
     assert any(line.startswith("| N=3 | 2 | no run files yet | no bonus table yet") for line in lines)
 
 
+def test_the_final_runs_file_holds_finals_only_under_their_readings_id(table1, results):
+    table1.main(["--results", str(results)])
+    out = results / "table1-navigation"
+    rows = read_rows(out / "runs.csv")
+    # N=3 seed 1 of both methods (made as cn-sparse-n3 with the penalty off) and MAPPO N=4; not the running SAEIR_PPO
+    # N=4 nor MAPPO N=3 seed 2 (16 games)
+    assert sorted({(row["task"], row["algo"], row["seed"]) for row in rows}) == [
+        (N3, "mappo", 1), (N3, "saeir_ppo", 1), (N4, "mappo", 1)
+    ]  # fmt: skip
+    assert len(rows) == 6
+    table = (out / "table.md").read_text()
+    assert table == table_markdown(rows)
+    assert "| mappo | 60.00 ± 0.00 (n=1) |" in table and "| **45.00 ± 0.00 (n=1)** |" in table
+
+
 def test_no_run_files_at_all_is_a_page_of_states(table1, tmp_path):
+    out = tmp_path / "table1-navigation"
+    out.mkdir()
+    (out / "runs.csv").write_text("stale\n")  # from an earlier build: no run is final now, so it goes
+    (out / "table.md").write_text("stale\n")
     assert table1.main(["--results", str(tmp_path)]) == 0
-    runs = (tmp_path / "table1-navigation" / "runs.md").read_text().splitlines()
+    runs = (out / "runs.md").read_text().splitlines()
     assert len(runs) == 2 + len(table1.RUNS) and all(line.endswith("| no run files yet |") for line in runs[2:])
-    assert (tmp_path / "table1-navigation" / "fire_rate.png").is_file()
+    assert (out / "fire_rate.png").is_file()
+    assert not (out / "runs.csv").exists() and not (out / "table.md").exists()

@@ -17,12 +17,15 @@
 # (copy_run_files.py makes bonus files for SAEIR_PPO only). SAEIR_PPO seed 4 trains in legs, each ending with its
 # done.json: its bonus files are rewritten at each copy after a leg.
 # bonus: benchmarks/bonus_rise.py on SAEIR_PPO seed 4's four kept models (queue.sh keeps each leg's final model with its
-# spec.json), two rollouts of the run's 8 games each, rollout seed 20000 (the script's default), 200-step windows:
+# spec.json) and on the final model of each finished SAE-only run (the bonus on MAPPO's critic), two rollouts of the
+# run's 8 games each, rollout seed 20000 (the script's default), 200-step windows:
 #
 #   python benchmarks/bonus_rise.py --rollouts 2 \
-#       --model $HOME/saeir-results/football-ablation/kept-models/saeir_ppo_s4_{250,500,750,1000}k/grf-3v1-keeper.zip
+#       --model $HOME/saeir-results/football-ablation/kept-models/saeir_ppo_s4_{250,500,750,1000}k/grf-3v1-keeper.zip \
+#       $HOME/saeir-results/football-ablation/runs/sae_only/grf-3v1-keeper_s{1,2,3}/grf-3v1-keeper.zip
 #
-# into bonus_rise.md here, under that command (the models that exist; none: it stops). Models are not committed.
+# into bonus_rise.md here, under that command (the models that exist; no kept model: it stops; about 3 minutes per
+# model). Models are not committed.
 # report: benchmarks/football_ablation.py writes runs.md, success.md, reaches.md, rule.md and curves.png here from the
 # committed run files (MAPPO and SAEIR_PPO seeds 1-3: the runs of football-probe/runs/<algo> and
 # football-stage-f/3v1/runs/<algo>/grf-3v1-keeper_s<seed>, read to 1M env steps), and a placeholder bonus_rise.md
@@ -55,25 +58,28 @@ copy_runs() {
 }
 
 bonus_rise() {
-    local k model models=() read=() shown steps tmp
+    local k seed model models=() shown=() legs=() n_sae=0 tmp
     for k in 250 500 750 1000; do
         model="$RESULTS/kept-models/saeir_ppo_s4_${k}k/$TASK.zip"
-        if [ -f "$model" ]; then models+=("$model"); read+=("$k"); fi
+        if [ -f "$model" ]; then models+=("$model"); legs+=("${k}k"); fi
     done
     if [ ${#models[@]} -eq 0 ]; then
         echo "report.sh bonus: no kept model yet under $RESULTS/kept-models (queue.sh keeps them)" >&2
         exit 1
     fi
-    shown="$(IFS=,; echo "${read[*]}")"
-    [ ${#read[@]} -eq 1 ] || shown="{$shown}"
-    steps="$(printf '%sk, ' "${read[@]}")"
+    for seed in 1 2 3; do  # SAE-only's finished runs: their final model, the bonus without the hypergraph critic
+        model="$RESULTS/runs/sae_only/${TASK}_s$seed/$TASK.zip"
+        if [ -f "$model" ] && [ -f "$(dirname "$model")/done.json" ]; then models+=("$model"); n_sae=$((n_sae + 1)); fi
+    done
+    for model in "${models[@]}"; do shown+=("\$HOME/saeir-results/football-ablation/${model#"$RESULTS"/}"); done
     tmp="$(mktemp)"
     "$PY" benchmarks/bonus_rise.py --rollouts 2 --model "${models[@]}" --out "$tmp" > /dev/null
     {
-        echo "\`python benchmarks/bonus_rise.py --rollouts 2 --model" \
-            "\$HOME/saeir-results/football-ablation/kept-models/saeir_ppo_s4_${shown}k/$TASK.zip\`"
-        echo "(SAEIR_PPO seed 4's final model of each leg, at ${steps%, } env steps, each with its spec.json; two rollouts"
-        echo "of the run's 8 games per model, rollout seed 20000, 200-step windows; models are not committed):"
+        echo "\`python benchmarks/bonus_rise.py --rollouts 2 --model ${shown[*]}\`"
+        echo
+        echo "(SAEIR_PPO seed 4's final model of each leg finished so far, at ${legs[*]} env steps, and the final model"
+        echo "(1M env steps) of the $n_sae finished SAE-only runs, each with its spec.json; two rollouts of the run's 8"
+        echo "games per model, rollout seed 20000, 200-step windows; models are not committed):"
         echo
         cat "$tmp"
     } > "$STUDY/bonus_rise.md"

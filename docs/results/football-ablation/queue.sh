@@ -11,7 +11,8 @@
 #
 # SAEIR_PPO seed 4 is trained in four legs (-n 750k, 1.5M, 2.25M, 3M agent-steps; training a finished run longer ends
 # as the uninterrupted run of the larger budget), and each leg's final model is kept with its spec.json in
-# $KEEP/saeir_ppo_s4_<thousands of env steps>k/ for benchmarks/bonus_rise.py (outside the repository).
+# $KEEP/saeir_ppo_s4_<thousands of env steps>k/ for benchmarks/bonus_rise.py (outside the repository); a resumed
+# queue starts at the first leg not kept.
 # A run whose done.json is committed beside this script at the full budget (3M agent-steps; SAEIR_PPO seed 4 writes
 # one after each leg) is skipped; re-running resumes the others from their checkpoints (the benchmark's own resume).
 # When a navigation pair shares the machine, pause it while this queue runs, or run it in its own session at
@@ -43,10 +44,18 @@ for run in "${RUNS[@]}"; do
     echo "$(date -u +%FT%TZ) $run: start"
     if [ "$run" = saeir_ppo:4 ]; then
         for leg in 750000 1500000 2250000 3000000; do
-            "$PY" -m sb3_saeir.benchmark --algos "$algo" --seeds "$seed" -n "$leg" "${COMMON[@]}" --rliable --out "$OUT"
             kept="$KEEP/saeir_ppo_s4_$((leg / 3000))k"  # the model and its spec.json, as bonus_rise.py reads them
-            mkdir -p "$kept"
-            cp "$OUT/runs/$algo/${TASK}_s$seed/$TASK.zip" "$OUT/runs/$algo/${TASK}_s$seed/spec.json" "$kept/"
+            # a kept leg is done: resuming starts at the first leg not kept (a smaller budget than the run's spec
+            # would not resume it, and would overwrite an earlier leg's kept model with a later one)
+            if [ -f "$kept/$TASK.zip" ]; then
+                echo "$(date -u +%FT%TZ) $run: leg to $leg agent-steps kept in $kept, skipped"
+                continue
+            fi
+            "$PY" -m sb3_saeir.benchmark --algos "$algo" --seeds "$seed" -n "$leg" "${COMMON[@]}" --rliable --out "$OUT"
+            rm -rf "$kept.partial" && mkdir -p "$kept.partial"
+            cp "$OUT/runs/$algo/${TASK}_s$seed/$TASK.zip" "$OUT/runs/$algo/${TASK}_s$seed/spec.json" "$kept.partial/"
+            rm -rf "$kept"  # (only an interrupted earlier copy can have left it, without the model)
+            mv "$kept.partial" "$kept"  # whole or not at all: a kill during the copy leaves no kept leg
         done
     else
         "$PY" -m sb3_saeir.benchmark --algos "$algo" --seeds "$seed" -n 3000000 "${COMMON[@]}" --rliable --out "$OUT"

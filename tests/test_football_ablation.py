@@ -174,6 +174,24 @@ def test_the_cut_at_1m(ablation, tmp_path):
     assert (out / "table.md").read_text() == table_markdown(rows)
 
 
+def test_a_legs_end_evaluation_off_the_grid_is_left_out(ablation, tmp_path):
+    # SAEIR_PPO seed 4 trains in legs, each ending one rollout past the grid point with an evaluation there (251,200
+    # env steps): at 90% it would be the seed's first reach of 10% and move its rank, if it were read
+    reaches = {"mappo": MAPPO_LATE, "saeir_ppo": [K, K, K, 2 * K], "mshg_only": [K] * 3, "sae_only": [K] * 3}
+    root = make_results(ablation, tmp_path, reaches)
+    evaluations = {**successes(2 * K, 1_000_000), K + 1_200: 0.9, 2 * K + 800: 0.9}
+    write_evaluations(root / ablation.run_folder("saeir_ppo", 4), spec("saeir_ppo", 4, 1_000_000), evaluations)
+    state = ablation.read_run(ablation.RUNS[7], root)
+    assert (state.run.algo, state.run.seed) == ("saeir_ppo", 4)
+    assert [row["env_steps"] for row in state.window_rows] == [0, K, 2 * K, 3 * K, 4 * K]
+    assert ablation.first_reach(state.curve, 10.0) == (2.0 * K, True)
+    ablation.main(["--results", str(root)])
+    out = root / "football-ablation"
+    assert "| SAEIR_PPO | 10% | s1 0.25M, s2 0.25M, s3 0.25M, s4 0.5M | 4 of 4 |" in (out / "reaches.md").read_text()
+    assert "| 5 of 7 | done.json | final at 1M env steps |" in (out / "runs.md").read_text()
+    assert {row["env_steps"] for row in read_rows(out / "runs.csv")} == {0, K, 2 * K, 3 * K, 4 * K}
+
+
 def test_pending_while_a_run_is_missing_or_not_final(ablation, tmp_path):
     reaches = {"mappo": MAPPO_LATE, "saeir_ppo": SAEIR_EARLY, "mshg_only": [K] * 3, "sae_only": [NEVER] * 3}
     root = make_results(ablation, tmp_path, reaches, skip={("sae_only", 3)}, running={("mshg_only", 2)})

@@ -9,8 +9,9 @@
 #   bash docs/results/football-ablation/queue.sh                        # every run not yet committed as done
 #   bash docs/results/football-ablation/queue.sh sae_only:2 mappo:4     # only these, in this order
 #
-# SAEIR_PPO seed 4 is trained in four legs (-n 750k, 1.5M, 2.25M, 3M agent-steps; training a finished run longer ends
-# as the uninterrupted run of the larger budget), and each leg's final model is kept with its spec.json in
+# SAEIR_PPO seed 4 is trained in four legs (-n 750k, 1.5M, 2.25M, 3M agent-steps; a finished run trained longer goes
+# on from its last step, the football games from a reset as on any resume), and each leg's final model is kept with
+# its spec.json in
 # $KEEP/saeir_ppo_s4_<thousands of env steps>k/ for benchmarks/bonus_rise.py (outside the repository); a resumed
 # queue starts at the first leg not kept.
 # A run whose done.json is committed beside this script at the full budget (3M agent-steps; SAEIR_PPO seed 4 writes

@@ -48,6 +48,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from sb3_saeir.benchmark import read_rows, table_markdown, write_rows
+from sb3_saeir.common.atomic import atomic_write_text
 from sb3_saeir.envs import get_task_spec
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -533,7 +534,7 @@ def write_final_runs(out: Path, rows: list[dict[str, Any]]) -> None:
         (out / "table.md").unlink(missing_ok=True)
         return
     write_rows(out / "runs.csv", rows)
-    (out / "table.md").write_text(table_markdown(read_rows(out / "runs.csv")))
+    atomic_write_text(out / "table.md", table_markdown(rows))
 
 
 def final_runs_rows(states: list[RunState]) -> list[dict[str, Any]]:

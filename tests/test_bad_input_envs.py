@@ -508,7 +508,7 @@ class OffApiMeetEnv(ToyMeetEnv):
         if self.fault == "info_none":
             infos["agent_0"] = None
         if self.fault == "array_reward":
-            rewards = {agent: np.array([reward]) for agent, reward in rewards.items()}
+            rewards = {agent: np.array([0.25]) for agent in rewards}  # one value whatever the unseeded game does
         return observations, rewards, terminations, truncations, infos
 
 
@@ -527,7 +527,7 @@ def test_a_reset_without_infos_is_named_for_every_agent_count(n_agents, num_cpus
     [
         ("none_infos_reset", "reset returned infos = NoneType None; PettingZoo's parallel API returns (observations, infos)"),
         ("empty_infos_step", "agent 0 (agent_0), step 1 of its episode: no info; step must return an info dict"),
-        ("array_reward", "agent 0 (agent_0), step 1 of its episode: the reward is ndarray array([0.]), not a number"),
+        ("array_reward", "agent 0 (agent_0), step 1 of its episode: the reward is ndarray array([0.25]), not a number"),
     ],
 )
 def test_off_api_returns_are_named_in_one_line(fault, expected):

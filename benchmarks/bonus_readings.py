@@ -69,8 +69,8 @@ def rollout_windows(experiment: Experiment, n_rollouts: int) -> list[dict[str, A
     :return: per rollout the stored normalised values ``(T, E, K)``, episode starts ``(T, E)``, bootstrap values
         ``(E, K)``, last dones ``(E,)`` and the scale names; for the critic diagnostics also the observations
         ``(T, E, *obs_shape)``, the critics' states before the rollout's first step ``(K, G, N, H)``, the values in
-        return space and the GAE returns ``(T, E, K)``, and the advantages standardised per scale as the update uses
-        them ``(T, E, K)``
+        return space, the GAE returns and the env rewards ``(T, E, K)``, and the advantages standardised per scale as
+        the update uses them ``(T, E, K)``
     """
     model = experiment.model
     assert model is not None and model.env is not None
@@ -93,6 +93,7 @@ def rollout_windows(experiment: Experiment, n_rollouts: int) -> list[dict[str, A
                 "critic_states": buffer.critic_states[0].copy(),
                 "denormalized_values": buffer.denormalized_values.copy(),
                 "returns": buffer.returns.copy(),
+                "rewards": buffer.rewards.copy(),
                 "advantages": buffer.standardized_advantages(),
             }
         )

@@ -23,7 +23,10 @@ gives the mean normalised value at every fifth position of the window (about ten
 50 steps) and at its last, the shape the rises come from. A third asks whether the bonus marks episode starts: per
 scale, the fire rate beside the rate at which steps are an episode's first (steps 2 on of each window, as the fire
 rate), the share of firing steps that are an episode's first step, and the mean value by position in the episode
-(steps before the window's first episode start, whose position is unknown, left out).
+(steps before the window's first episode start, whose position is unknown, left out). A fourth asks whether it marks
+the run-up to a reward: per scale, the share of steps that lie in the ``RUN_UP`` = 10 steps up to and including a step
+with a positive env reward of the same episode and window (on football, a goal), beside the share of firing steps that
+do; a goal after the window's end is not seen, so both shares count only the run-ups inside the window.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from sb3_saeir.intrinsic import saeir_bonus
 
 QUANTILES = (0.5, 0.9, 0.99)
 TEMPERATURE_FACTOR = 4.0
+RUN_UP = 10
 
 
 def window_entropies(values: np.ndarray) -> np.ndarray:
@@ -112,6 +116,32 @@ def first_step_share(fired: np.ndarray, episode_starts: np.ndarray) -> float:
     return float((fired & episode_starts.astype(bool)).sum() / n_fired) if n_fired else float("nan")
 
 
+def before_positive_reward(rewards: np.ndarray, episode_starts: np.ndarray, run_up: int) -> np.ndarray:
+    """Which steps lie in the ``run_up`` steps up to and including a step with a positive reward of the same episode,
+    of windows ``(T, S)``: step ``t`` is marked when a step ``u`` with ``t <= u < t + run_up`` has a reward above 0 and
+    no episode starts in ``(t, u]``.
+
+    :param rewards: the env reward of each step (received after its action), ``(T, S)``
+    :param episode_starts: which steps are an episode's first, ``(T, S)``
+    :param run_up: how many steps, the rewarded one included, are marked before each positive reward
+    :return: the marked steps, ``(T, S)``
+    """
+    starts = episode_starts.astype(bool)
+    marked = np.zeros(rewards.shape, dtype=bool)
+    steps_to_reward = np.full(rewards.shape[1], np.inf)  # (S,) steps from t to the episode's next positive reward
+    for t in range(rewards.shape[0] - 1, -1, -1):
+        steps_to_reward = np.where(rewards[t] > 0, 0.0, steps_to_reward + 1.0)
+        marked[t] = steps_to_reward < run_up
+        steps_to_reward = np.where(starts[t], np.inf, steps_to_reward)  # the steps before t belong to another episode
+    return marked
+
+
+def marked_share(fired: np.ndarray, marked: np.ndarray) -> float:
+    """The share of firing steps that are marked (``nan`` when no step fires), both ``(T, S)``."""
+    n_fired = int(fired.sum())
+    return float((fired & marked).sum() / n_fired) if n_fired else float("nan")
+
+
 def episode_profile(values: np.ndarray, positions: np.ndarray, at: list[int]) -> np.ndarray:
     """The mean value at each position ``at`` in the episode (``nan`` where no step has that position), ``(len(at),)``.
 
@@ -122,12 +152,15 @@ def episode_profile(values: np.ndarray, positions: np.ndarray, at: list[int]) ->
     return np.array([values[positions == position].mean() if (positions == position).any() else np.nan for position in at])
 
 
-def scale_readings(values: np.ndarray, values_return_space: np.ndarray, episode_starts: np.ndarray) -> dict[str, Any]:
-    """Every figure of one scale over windows ``(T, S)`` (see the module docstring)."""
+def scale_readings(
+    values: np.ndarray, values_return_space: np.ndarray, episode_starts: np.ndarray, rewards: np.ndarray
+) -> dict[str, Any]:
+    """Every figure of one scale over windows ``(T, S)`` (see the module docstring); ``rewards`` are the env rewards."""
     rise = rises(values)[2:]  # steps 0 and 1 never fire
     threshold = thresholds(window_entropies(values))[2:]
     fired = saeir_bonus(values)[2:] > 0
     positions = episode_positions(episode_starts)
+    run_up = before_positive_reward(rewards, episode_starts, RUN_UP)[2:]
     finite = np.isfinite(threshold)
     return {
         "n": rise.size,
@@ -145,6 +178,8 @@ def scale_readings(values: np.ndarray, values_return_space: np.ndarray, episode_
         "first_step_share": first_step_share(fired, episode_starts[2:]),
         "episode_start_rate": float(episode_starts[2:].astype(bool).mean()),
         "episode_profile": episode_profile(values, positions, profile_positions(values.shape[0])),
+        "run_up_rate": float(run_up.mean()),
+        "run_up_share": marked_share(fired, run_up),
     }
 
 
@@ -158,7 +193,8 @@ def model_readings(model_path: Path, n_rollouts: int, n_games: int | None, seed:
         values = np.concatenate([w["values"][..., k] for w in windows], axis=1)  # (T, E * rollouts)
         returns_space = np.concatenate([w["denormalized_values"][..., k] for w in windows], axis=1)
         starts = np.concatenate([w["episode_starts"] for w in windows], axis=1)
-        readings[scale] = scale_readings(values, returns_space, starts)
+        rewards = np.concatenate([w["rewards"][..., k] for w in windows], axis=1)  # (T, E * rollouts)
+        readings[scale] = scale_readings(values, returns_space, starts, rewards)
         spread = values.std()
         readings[scale]["sigma"] = float(returns_space.std() / spread) if spread > 0 else float("nan")
     return readings
@@ -203,6 +239,16 @@ def markdown(results: dict[str, dict[str, dict[str, Any]]]) -> str:
             lines.append(
                 f"| {name} | {scale} | {row['fire_rate']:.4f} | {row['episode_start_rate']:.4f} | {share} | {cells} |"
             )
+    lines += [
+        "",
+        f"| model | scale | fire rate | steps in the {RUN_UP} steps up to a positive reward "
+        f"| firing steps in the {RUN_UP} steps up to a positive reward |",
+        "|---|---|---|---|---|",
+    ]
+    for name, scales in results.items():
+        for scale, row in scales.items():
+            share = "-" if np.isnan(row["run_up_share"]) else f"{row['run_up_share']:.3f}"
+            lines.append(f"| {name} | {scale} | {row['fire_rate']:.4f} | {row['run_up_rate']:.3f} | {share} |")
     return "\n".join(lines) + "\n"
 
 

@@ -53,7 +53,7 @@ def test_fire_rate_equals_the_code_bonus(bonus_rise):
     rng = np.random.default_rng(4)
     for spread in (0.2, 1.0, 5.0):
         values = spread * rng.normal(size=(25, 300))
-        readings = bonus_rise.scale_readings(values, 3.0 * values, np.zeros((25, 300)))
+        readings = bonus_rise.scale_readings(values, 3.0 * values, np.zeros((25, 300)), np.zeros((25, 300)))
         expected = np.count_nonzero(saeir_bonus(values)[2:]) / values[2:].size
         assert readings["fire_rate"] == pytest.approx(expected)
         assert readings["fire_rate_by_rise"] == pytest.approx(expected)
@@ -62,7 +62,9 @@ def test_fire_rate_equals_the_code_bonus(bonus_rise):
     values = np.tile(np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 3.0, 0.0])[:, None], (1, 2))
     starts = np.zeros((8, 2))
     starts[4] = 1
-    readings = bonus_rise.scale_readings(values, values, starts)
+    rewards = np.zeros((8, 2))
+    rewards[3, 0] = 1.0  # the first episode of game 0 ends with a reward
+    readings = bonus_rise.scale_readings(values, values, starts, rewards)
     assert readings["fire_rate"] == pytest.approx(1 / 6) and readings["fire_rate_episode_windows"] == pytest.approx(2 / 6)
     # the rises of steps 2-7 by hand: 3 above log-mean-exp(0, 0) = 0, then v_t - log((k + m e^3) / t) with k zeros and
     # m threes before step t
@@ -72,9 +74,12 @@ def test_fire_rate_equals_the_code_bonus(bonus_rise):
     assert readings["above_one"] == pytest.approx(2 / 6)  # steps 2 and 6 (1.57)
     assert readings["quantiles"][0] == pytest.approx(np.median(rises))
     assert readings["profile"] == pytest.approx([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 3.0, 0.0])
+    # steps 2-3 of game 0 are in the run-up to its reward at step 3 (2 of 12 steps from 2 on), and so is the one step
+    # that fires in the rollout's window (step 2 of each game: game 0's of 2 firing steps)
+    assert readings["run_up_rate"] == pytest.approx(2 / 12) and readings["run_up_share"] == pytest.approx(1 / 2)
     # values x 4 (and the same in return space): step 2 still fires; step 6's second 12 raises the entropy of a window
     # that the first 12 dominates, so it does not; appending a low value to such a window raises it too
-    readings = bonus_rise.scale_readings(values, 2.0 * values, starts)
+    readings = bonus_rise.scale_readings(values, 2.0 * values, starts, rewards)
     assert readings["fire_rate_temperature"] == pytest.approx(1 / 6)
     assert readings["fire_rate_return_space"] == pytest.approx(1 / 6)
 
@@ -94,11 +99,14 @@ def test_main_on_benchmark_models(bonus_rise, tmp_path, capsys):
     assert rows[0].startswith(f"| {tmp_path.name}/mshg_only/cn-sparse-n3_s1/cn-sparse-n3 | team |")  # folder/algo/run/file
     assert all(row.split(" | ")[2] == str(23 * 6) for row in rows[:4])  # steps 2-24 of 2 games x 3 agents
     assert "| mean value at step 0 | mean value at step 5 |" in text and "| mean value at step 24 |" in text
-    assert len(rows) == 12 and rows[4].count(" | ") == 7  # the profile table: model, scale, positions 0-20 and 24
+    assert len(rows) == 16 and rows[4].count(" | ") == 7  # the profile table: model, scale, positions 0-20 and 24
     # the episode-start table: navigation's windows are whole episodes, so no step from 2 on starts one
     assert "| firing steps that are an episode's first step | mean value at episode step 0 |" in text
-    assert all(row.split(" | ")[3] == "0.0000" for row in rows[8:])
-    assert all(row.split(" | ")[5] != "-" for row in rows[8:])  # every window's step 0 is an episode's first
+    assert all(row.split(" | ")[3] == "0.0000" for row in rows[8:12])
+    assert all(row.split(" | ")[5] != "-" for row in rows[8:12])  # every window's step 0 is an episode's first
+    # the run-up table: a share of steps for every scale, and its firing share a share or "-" (nothing fired)
+    assert "| steps in the 10 steps up to a positive reward | firing steps in the 10 steps up to a positive reward |" in text
+    assert all(0.0 <= float(row.split(" | ")[3]) <= 1.0 for row in rows[12:])
 
 
 def test_profile_positions(bonus_rise):
@@ -131,3 +139,33 @@ def test_first_step_share_and_episode_profile_worked_example(bonus_rise):
     profile = bonus_rise.episode_profile(values, positions, [0, 1, 2, 3])
     np.testing.assert_allclose(profile[:3], [(1.0 + 5.0 + 4.0) / 3, (2.0 + 6.0) / 2, (3.0 + 7.0) / 2])
     assert np.isnan(profile[3])  # 9.0 (position unknown) is left out; no step is at position 3
+
+
+def test_before_positive_reward_worked_example(bonus_rise):
+    # column 0: two episodes, rewarded at steps 3 and 7; column 1: the reward at step 4 is in the episode from step 3
+    rewards = np.array([[0, 0], [0, 0], [0, 0], [1, 0], [0, 1], [0, 0], [0, 0], [1, 0]], dtype=float)  # (T=8, S=2)
+    starts = np.array([[1, 0], [0, 0], [0, 0], [0, 1], [1, 0], [0, 0], [0, 0], [0, 0]], dtype=bool)
+    marked = bonus_rise.before_positive_reward(rewards, starts, run_up=3)
+    assert marked[:, 0].tolist() == [False, True, True, True, False, True, True, True]
+    # steps 2 and 3 of column 1 are within 3 steps of its reward, but step 2 ends the previous episode
+    assert marked[:, 1].tolist() == [False, False, False, True, True, False, False, False]
+    fired = np.array([[0, 0], [1, 0], [0, 1], [0, 0], [1, 0], [0, 0], [0, 0], [0, 0]], dtype=bool)
+    assert bonus_rise.marked_share(fired, marked) == pytest.approx(1 / 3)  # of steps (1, 0), (2, 1), (4, 0): (1, 0)
+    assert np.isnan(bonus_rise.marked_share(np.zeros_like(fired), marked))
+
+
+def test_before_positive_reward_against_a_slow_loop(bonus_rise):
+    rng = np.random.default_rng(3)
+    rewards = (rng.random((40, 6)) < 0.1) * rng.choice([-1.0, 1.0], size=(40, 6))  # some negative rewards too
+    starts = rng.random((40, 6)) < 0.15
+    marked = bonus_rise.before_positive_reward(rewards, starts, run_up=4)
+    for s in range(6):
+        for t in range(40):
+            expected = False
+            for u in range(t, min(t + 4, 40)):
+                if u > t and starts[u, s]:
+                    break  # a new episode begins: its rewards are not this step's
+                if rewards[u, s] > 0:
+                    expected = True
+                    break
+            assert marked[t, s] == expected, (t, s)

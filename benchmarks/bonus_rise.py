@@ -106,14 +106,19 @@ def episode_positions(episode_starts: np.ndarray) -> np.ndarray:
     return positions
 
 
+def marked_share(fired: np.ndarray, marked: np.ndarray) -> float:
+    """The share of firing steps that are marked (``nan`` when no step fires), both ``(T, S)``."""
+    n_fired = int(fired.sum())
+    return float((fired & marked).sum() / n_fired) if n_fired else float("nan")
+
+
 def first_step_share(fired: np.ndarray, episode_starts: np.ndarray) -> float:
     """The share of firing steps that are an episode's first step (``nan`` when no step fires).
 
     :param fired: which steps fired, ``(T, S)``
     :param episode_starts: which steps are an episode's first, ``(T, S)``
     """
-    n_fired = int(fired.sum())
-    return float((fired & episode_starts.astype(bool)).sum() / n_fired) if n_fired else float("nan")
+    return marked_share(fired, episode_starts.astype(bool))
 
 
 def before_positive_reward(rewards: np.ndarray, episode_starts: np.ndarray, run_up: int) -> np.ndarray:
@@ -134,12 +139,6 @@ def before_positive_reward(rewards: np.ndarray, episode_starts: np.ndarray, run_
         marked[t] = steps_to_reward < run_up
         steps_to_reward = np.where(starts[t], np.inf, steps_to_reward)  # the steps before t belong to another episode
     return marked
-
-
-def marked_share(fired: np.ndarray, marked: np.ndarray) -> float:
-    """The share of firing steps that are marked (``nan`` when no step fires), both ``(T, S)``."""
-    n_fired = int(fired.sum())
-    return float((fired & marked).sum() / n_fired) if n_fired else float("nan")
 
 
 def episode_profile(values: np.ndarray, positions: np.ndarray, at: list[int]) -> np.ndarray:

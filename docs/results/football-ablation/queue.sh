@@ -11,9 +11,8 @@
 #
 # SAEIR_PPO seed 4 is trained in four legs (-n 750k, 1.5M, 2.25M, 3M agent-steps; a finished run trained longer goes
 # on from its last step, the football games from a reset as on any resume), and each leg's final model is kept with
-# its spec.json in
-# $KEEP/saeir_ppo_s4_<thousands of env steps>k/ for benchmarks/bonus_rise.py (outside the repository); a resumed
-# queue starts at the first leg not kept.
+# its spec.json in $KEEP/saeir_ppo_s4_<thousands of env steps>k/ for benchmarks/bonus_rise.py (outside the
+# repository); a resumed queue starts at the first leg not kept.
 # A run whose done.json is committed beside this script at the full budget (3M agent-steps; SAEIR_PPO seed 4 writes
 # one after each leg) is skipped; re-running resumes the others from their checkpoints (the benchmark's own resume).
 # When a navigation pair shares the machine, pause it while this queue runs, or run it in its own session at

@@ -341,6 +341,11 @@ def case(critic: ArmTest, bonus: ArmTest) -> str | None:
     return CASES[(critic.earlier, bonus.earlier)]
 
 
+def still_text(test: ArmTest) -> str:
+    """``smallest p still possible: 0.086`` (``-`` without a bound) for a pending test."""
+    return f"smallest p still possible: {NONE if test.p_still is None else f'{test.p_still:.3f}'}"
+
+
 def yes_no(value: bool | None) -> str:
     return NONE if value is None else ("yes" if value else "no")
 
@@ -391,8 +396,7 @@ def rule_lines(states: list[RunState]) -> list[str]:
     for (algo, threshold), test in tests.items():
         seeds = f"{len(SEEDS[algo])} vs {len(SEEDS[BASELINE])}"
         if test.p is None or test.share is None:
-            still = NONE if test.p_still is None else f"{test.p_still:.3f}"
-            cells = [NONE, NONE, f"pending: waits for {', '.join(test.missing)} (smallest p still possible: {still})"]
+            cells = [NONE, NONE, f"pending: waits for {', '.join(test.missing)} ({still_text(test)})"]
         else:
             cells = [f"{test.share:.0%}", f"{test.p:.3f}", yes_no(test.earlier)]
         rows.append([NAMES[algo], percent(threshold), seeds, *cells])
@@ -536,7 +540,7 @@ def main(argv: list[str] | None = None) -> int:
     tests = rule_tests(states)
     for (algo, threshold), test in tests.items():
         found = (
-            f"pending (smallest p still possible: {NONE if test.p_still is None else f'{test.p_still:.3f}'})"
+            f"pending ({still_text(test)})"
             if test.p is None
             else f"share {test.share:.0%}, p = {test.p:.3f}, earlier: {yes_no(test.earlier)}"
         )

@@ -26,7 +26,7 @@ its state (``running, at 0.5M env steps``, ``no run files yet``, ...) and enters
   over its final seeds;
 - ``reaches.md``: per method and threshold (10 and 20 % success), each seed's first evaluation at or above it;
 - ``rule.md``: the rule below, then its tests and the case found per threshold (pending while a run it needs is not
-  final);
+  final; a pending test names the smallest p-value the runs still to come can give, :func:`smallest_p_still`);
 - ``runs.csv`` and ``table.md``: the final runs' evaluations cut at 1M env steps and the benchmark's final table of
   them (``table1_navigation.write_final_runs``: neither file before a run is final), which ``docs/results.md``'s rows
   and its football figure read;
@@ -58,6 +58,7 @@ The rule is applied only when every run it needs is final; until then it names n
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import sys
@@ -255,6 +256,47 @@ def smallest_p(n_first: int, n_second: int) -> float:
     return 1.0 / math.comb(n_first + n_second, n_first)
 
 
+def reaches_still_possible(s: RunState, threshold: float) -> list[float]:
+    """The first reaches of ``threshold`` (rank keys, ``inf``: censored at 1M env steps) that a run not final yet can
+    still end with: the one it has, once its evaluations read have reached the threshold; else any grid point after
+    its last evaluation read, or censored. A run without files, or one that differs from the protocol (it must be
+    made again), can still end with any of them.
+
+    :param s: the run's state
+    :param threshold: success %
+    """
+    after = -math.inf
+    if s.curve is not None and not s.differences:
+        steps, reached = first_reach(s.curve, threshold)
+        if reached:
+            return [steps]
+        after = steps  # the last evaluation read, below the threshold
+    return [*(c for c in CHECKPOINTS if c > after), math.inf]
+
+
+def smallest_p_still(states: list[RunState], algo: str, threshold: float) -> float | None:
+    """The smallest p-value the rule's test of ``algo`` against ``MAPPO`` can still give, over every first reach that
+    the arm's runs not final yet can still end with (:func:`reaches_still_possible`): what the runs still to come can
+    change. ``None`` while a ``MAPPO`` seed is not final (the bound is kept to the arm's own runs).
+
+    :param states: every planned run's state
+    :param algo: the arm
+    :param threshold: success %
+    """
+    baseline = [s for s in states if s.run.algo == BASELINE]
+    if not all(s.final and s.curve is not None for s in baseline):
+        return None
+    second = reach_ranks([first_reach(s.curve, threshold) for s in baseline if s.curve is not None])
+    options = [
+        reach_ranks([first_reach(s.curve, threshold)])
+        if s.final and s.curve is not None
+        else reaches_still_possible(s, threshold)
+        for s in states
+        if s.run.algo == algo
+    ]
+    return min(earlier_test(list(first), second)[1] for first in itertools.product(*options))
+
+
 class ArmTest(NamedTuple):
     """The rule's test of one arm against ``MAPPO`` at one threshold.
 
@@ -263,6 +305,8 @@ class ArmTest(NamedTuple):
     :param share: the share of seed pairs where the arm reaches first, ties half (``None``: pending)
     :param p: the exact one-sided p-value (``None``: pending)
     :param missing: the runs it needs that are not final (empty: it is applied)
+    :param p_still: while pending, the smallest p-value the runs still to come can give (:func:`smallest_p_still`;
+        ``None``: applied, or a ``MAPPO`` seed is not final)
     """
 
     algo: str
@@ -270,6 +314,7 @@ class ArmTest(NamedTuple):
     share: float | None
     p: float | None
     missing: list[str]
+    p_still: float | None = None
 
     @property
     def earlier(self) -> bool | None:
@@ -282,7 +327,7 @@ def arm_test(states: list[RunState], algo: str, threshold: float) -> ArmTest:
     while any planned run of either method is not final."""
     missing = [name(s) for s in states if s.run.algo in (algo, BASELINE) and not s.final]
     if missing:
-        return ArmTest(algo, threshold, None, None, missing)
+        return ArmTest(algo, threshold, None, None, missing, smallest_p_still(states, algo, threshold))
     first = reach_times(final_curves(states, algo), threshold)
     second = reach_times(final_curves(states, BASELINE), threshold)
     share, p = earlier_test(first, second)
@@ -294,6 +339,11 @@ def case(critic: ArmTest, bonus: ArmTest) -> str | None:
     if critic.earlier is None or bonus.earlier is None:
         return None
     return CASES[(critic.earlier, bonus.earlier)]
+
+
+def still_text(test: ArmTest) -> str:
+    """``smallest p still possible: 0.086`` (``-`` without a bound) for a pending test."""
+    return f"smallest p still possible: {NONE if test.p_still is None else f'{test.p_still:.3f}'}"
 
 
 def yes_no(value: bool | None) -> str:
@@ -334,11 +384,19 @@ def rule_lines(states: list[RunState]) -> list[str]:
         f"Pending: not final yet: {', '.join(missing)}." if missing else "Every run is final: the rule is applied.",
         "",
     ]
+    if missing:
+        lines += [
+            "A pending test names the smallest p-value it can still give: the least over every first reach that the "
+            "arm's runs not final yet can still end with (one already reached stays; otherwise any evaluation after "
+            "the last one read, or censored at 1M), MAPPO's four seeds as they are (`-` while one of them is not "
+            "final). It is a bound, not the test: the rule waits for the runs.",
+            "",
+        ]
     rows = []
     for (algo, threshold), test in tests.items():
         seeds = f"{len(SEEDS[algo])} vs {len(SEEDS[BASELINE])}"
         if test.p is None or test.share is None:
-            cells = [NONE, NONE, f"pending: waits for {', '.join(test.missing)}"]
+            cells = [NONE, NONE, f"pending: waits for {', '.join(test.missing)} ({still_text(test)})"]
         else:
             cells = [f"{test.share:.0%}", f"{test.p:.3f}", yes_no(test.earlier)]
         rows.append([NAMES[algo], percent(threshold), seeds, *cells])
@@ -481,7 +539,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name(s)} ({s.run.folder}): {s.state()}")
     tests = rule_tests(states)
     for (algo, threshold), test in tests.items():
-        found = "pending" if test.p is None else f"share {test.share:.0%}, p = {test.p:.3f}, earlier: {yes_no(test.earlier)}"
+        found = (
+            f"pending ({still_text(test)})"
+            if test.p is None
+            else f"share {test.share:.0%}, p = {test.p:.3f}, earlier: {yes_no(test.earlier)}"
+        )
         print(f"{NAMES[algo]} earlier than MAPPO at {percent(threshold)}: {found}")
     for cells in case_rows(states, tests):
         print(f"case at {cells[0]}: {cells[-1]}")

@@ -4,6 +4,7 @@ is missing or not final, and the states of the runs."""
 
 import csv
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -204,13 +205,47 @@ def test_pending_while_a_run_is_missing_or_not_final(ablation, tmp_path):
     ablation.main(["--results", str(root)])
     rule = (root / "football-ablation" / "rule.md").read_text()
     assert "Pending: not final yet: MSHG-only s2, SAE-only s3." in rule
-    assert "| MSHG-only | 10% | 3 vs 4 | - | - | pending: waits for MSHG-only s2 |" in rule
+    # MSHG-only s2 reached 10% at 250k before it stopped: all three at 250k, earlier than every MAPPO seed (1/35)
+    still = "(smallest p still possible: 0.029)"
+    assert f"| MSHG-only | 10% | 3 vs 4 | - | - | pending: waits for MSHG-only s2 {still} |" in rule
     assert "| 20% | - | - | pending: waits for MSHG-only s2, SAE-only s3 |" in rule
     case_lines = [line for line in rule.splitlines() if line.startswith(("| 10% |", "| 20% |"))]
     assert len(case_lines) == 2 and all(line.split(" | ")[-1].startswith("pending") for line in case_lines)
     reaches_md = (root / "football-ablation" / "reaches.md").read_text()
     assert "| MSHG-only | 10% | s1 0.25M, s2 0.25M (not final), s3 0.25M | 2 of 3 |" in reaches_md
     assert "| SAE-only | 10% | s1 > 1M, s2 > 1M, s3 - (no run files yet) | 2 of 3 |" in reaches_md
+
+
+def test_the_reaches_a_run_not_final_can_still_end_with(ablation, tmp_path):
+    reaches = {"mappo": MAPPO_LATE, "saeir_ppo": SAEIR_EARLY, "mshg_only": [K, K, K], "sae_only": [K, NEVER, 3 * K]}
+    running = {("mshg_only", 2), ("sae_only", 2)}  # both at 500k env steps: MSHG-only s2 reached at 250k, SAE-only s2 not
+    root = make_results(ablation, tmp_path, reaches, skip={("sae_only", 3)}, running=running)
+    state = {(r.algo, r.seed): ablation.read_run(r, root) for r in ablation.RUNS}
+    assert ablation.reaches_still_possible(state[("mshg_only", 2)], 10.0) == [K]
+    assert ablation.reaches_still_possible(state[("sae_only", 2)], 10.0) == [3 * K, 4 * K, math.inf]
+    assert ablation.reaches_still_possible(state[("sae_only", 3)], 10.0) == [0, K, 2 * K, 3 * K, 4 * K, math.inf]
+
+
+def test_the_smallest_p_still_possible_with_a_hand_count(ablation, tmp_path):
+    # MAPPO [750k x 3, 500k] (final); MSHG-only s1, s2 final at 500k, s3 without files. Its best is s3 before 500k
+    # (0 or 250k): then MSHG-only holds the pooled earliest time and two of the three 500k times, the third MAPPO's.
+    # Of the 35 ways to give 3 of the 7 times to MSHG-only, those at least as early are the earliest time with any two
+    # of the three 500k times: 3, so p = 3/35 (s3 at 500k: the four 500k times hold all three, C(4,3) = 4, p = 4/35).
+    reaches = {"mappo": [3 * K, 3 * K, 3 * K, 2 * K], "saeir_ppo": SAEIR_EARLY, "mshg_only": [2 * K, 2 * K, K],
+               "sae_only": [2 * K, NEVER, K]}  # fmt: skip
+    root = make_results(ablation, tmp_path, reaches, skip={("mshg_only", 3), ("sae_only", 3)}, running={("sae_only", 2)})
+    states = [ablation.read_run(run, root) for run in ablation.RUNS]
+    tests = ablation.rule_tests(states)
+    assert tests[("mshg_only", 10.0)].p is None
+    assert tests[("mshg_only", 10.0)].p_still == pytest.approx(3 / 35)
+    # SAE-only s2 has not reached 10% by 500k: its best is 750k, s3's the first evaluation; no arrangement is better
+    mappo = [3 * K, 3 * K, 3 * K, 2 * K]
+    assert tests[("sae_only", 10.0)].p_still == pytest.approx(ablation.earlier_test([2 * K, 3 * K, 0], mappo)[1])
+    assert tests[("sae_only", 10.0)].p_still > 0.05
+    assert tests[("saeir_ppo", 10.0)].p_still is None  # applied: no bound
+    # the bound leaves MAPPO's seeds as they are, and gives none while one of them is not final
+    root = make_results(ablation, tmp_path / "b", reaches, skip={("mshg_only", 3)}, running={("mappo", 4)})
+    assert ablation.rule_tests([ablation.read_run(run, root) for run in ablation.RUNS])[("mshg_only", 10.0)].p_still is None
 
 
 def test_the_states_of_the_runs(ablation, tmp_path):

@@ -257,10 +257,10 @@ def smallest_p(n_first: int, n_second: int) -> float:
 
 
 def reaches_still_possible(s: RunState, threshold: float) -> list[float]:
-    """The first reaches of ``threshold`` (rank keys, ``inf``: censored at 1M env steps) that a run not final yet can
-    still end with: the one it has, once its evaluations read have reached the threshold; else any grid point after
-    its last evaluation read, or censored. A run without files, or one that differs from the protocol (it must be
-    made again), can still end with any of them.
+    """The first reaches of ``threshold`` (rank keys, ``inf``: censored at 1M env steps) that a run can still end
+    with: the one it has, once its evaluations read have reached the threshold; else any grid point after its last
+    evaluation read, or censored (a final run, evaluated at 1M: its own, one key). A run without files, or one that
+    differs from the protocol (it must be made again), can still end with any of them.
 
     :param s: the run's state
     :param threshold: success %
@@ -283,17 +283,10 @@ def smallest_p_still(states: list[RunState], algo: str, threshold: float) -> flo
     :param algo: the arm
     :param threshold: success %
     """
-    baseline = [s for s in states if s.run.algo == BASELINE]
-    if not all(s.final and s.curve is not None for s in baseline):
+    if not all(s.final for s in states if s.run.algo == BASELINE):
         return None
-    second = reach_ranks([first_reach(s.curve, threshold) for s in baseline if s.curve is not None])
-    options = [
-        reach_ranks([first_reach(s.curve, threshold)])
-        if s.final and s.curve is not None
-        else reaches_still_possible(s, threshold)
-        for s in states
-        if s.run.algo == algo
-    ]
+    second = reach_times(final_curves(states, BASELINE), threshold)
+    options = [reaches_still_possible(s, threshold) for s in states if s.run.algo == algo]  # one key per final run
     return min(earlier_test(list(first), second)[1] for first in itertools.product(*options))
 
 

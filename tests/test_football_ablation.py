@@ -205,7 +205,7 @@ def test_pending_while_a_run_is_missing_or_not_final(ablation, tmp_path):
     ablation.main(["--results", str(root)])
     rule = (root / "football-ablation" / "rule.md").read_text()
     assert "Pending: not final yet: MSHG-only s2, SAE-only s3." in rule
-    # MSHG-only s2 reached 10% at 250k before it stopped: all three at 250k, earlier than every MAPPO seed (1/35)
+    # MSHG-only s2 (running) has reached 10% at 250k: all three at 250k, earlier than every MAPPO seed (1/35)
     still = "(smallest p still possible: 0.029)"
     assert f"| MSHG-only | 10% | 3 vs 4 | - | - | pending: waits for MSHG-only s2 {still} |" in rule
     assert "| 20% | - | - | pending: waits for MSHG-only s2, SAE-only s3 |" in rule
@@ -224,6 +224,8 @@ def test_the_reaches_a_run_not_final_can_still_end_with(ablation, tmp_path):
     assert ablation.reaches_still_possible(state[("mshg_only", 2)], 10.0) == [K]
     assert ablation.reaches_still_possible(state[("sae_only", 2)], 10.0) == [3 * K, 4 * K, math.inf]
     assert ablation.reaches_still_possible(state[("sae_only", 3)], 10.0) == [0, K, 2 * K, 3 * K, 4 * K, math.inf]
+    assert ablation.reaches_still_possible(state[("sae_only", 1)], 10.0) == [K]  # final: its own
+    assert ablation.reaches_still_possible(state[("mappo", 1)], 50.0) == [math.inf]  # final, censored at 1M
 
 
 def test_the_smallest_p_still_possible_with_a_hand_count(ablation, tmp_path):

@@ -179,6 +179,9 @@ def arm_2b(label: str, name: str, summary: bool) -> Row:
 # issue 51 part 2: the two MSHG-only arms over 15 seeds, as gumbel/comparison.md names and orders them
 GUMBEL = "navigation-calibrated/gumbel/runs.csv"
 GUMBEL_ARMS = (f"mshg-gumbel={GUMBEL}:mshg-gumbel", f"mshg-no-gumbel={GUMBEL}:mshg-no-gumbel")
+# Football 3 vs 1 over the first 1M env steps, the four arms of issue 65 (docs/results/football-ablation.md): the final
+# runs cut at 1M that benchmarks/football_ablation.py writes into football-ablation/runs.csv.
+ABLATION_3V1 = methods(THREE, ("football-ablation/runs.csv:{algo}",), "mappo saeir_ppo mshg_only sae_only", RANDOM["3v1"])
 STAGE2 = "mappo sae_only mshg_only saeir_ppo"
 STUDIES: dict[str, Study] = {
     "navigation-5pct": Study(
@@ -264,6 +267,7 @@ STUDIES: dict[str, Study] = {
         ),
         checkpoints=(250_000, 500_000, 750_000, 1e6, 1.5e6),
     ),
+    "football-ablation": Study(ABLATION_3V1, checkpoints=(250_000, 500_000, 750_000, 1e6)),
     "counterattack-easy": Study(
         methods(COUNTER, ("football-stage-f/counterattack/runs.csv:{algo}",), "mappo saeir_ppo", RANDOM["counterattack"]),
         checkpoints=(250_000, 500_000, 1e6, 1.5e6),
@@ -614,9 +618,6 @@ def pages(docs: Path) -> list[Path]:
 
 
 COLORS = {"MAPPO": "C0", "SAEIR_PPO": "C3", "MSHG-only": "C2", "SAE-only": "C1"}  # the summary figures' methods
-# Football 3 vs 1 over the first 1M env steps, the four arms of issue 65 (docs/results/football-ablation.md): the final
-# runs cut at 1M that benchmarks/football_ablation.py writes into football-ablation/runs.csv.
-ABLATION_3V1 = methods(THREE, ("football-ablation/runs.csv:{algo}",), "mappo saeir_ppo mshg_only sae_only", RANDOM["3v1"])
 
 
 def draw_panel(axis: Any, title: str, rows: list[Row], results: Path, ylabel: str, paper: bool) -> None:
